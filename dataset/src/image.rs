@@ -1,0 +1,132 @@
+//! A dense, interleaved, row-major image of any sample type.
+
+use crate::{Error, Result};
+
+/// `height` rows of `width` pixels of `channels` interleaved samples each.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image<T> {
+    width: usize,
+    height: usize,
+    channels: usize,
+    data: Vec<T>,
+}
+
+impl<T: Copy + Default> Image<T> {
+    /// An image filled with `T::default()`.
+    pub fn new(width: usize, height: usize, channels: usize) -> Self {
+        Self { width, height, channels, data: vec![T::default(); width * height * channels] }
+    }
+}
+
+impl<T: Copy> Image<T> {
+    /// An image over `data`, which must hold exactly `width * height * channels` samples.
+    pub fn from_vec(width: usize, height: usize, channels: usize, data: Vec<T>) -> Result<Self> {
+        let expected = width * height * channels;
+        if data.len() != expected {
+            return Err(Error::invalid(format!(
+                "image of {width}x{height}x{channels} needs {expected} samples, got {}",
+                data.len()
+            )));
+        }
+        Ok(Self { width, height, channels, data })
+    }
+
+    /// Pixels per row.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// Rows.
+    pub fn height(&self) -> usize {
+        self.height
+    }
+
+    /// Samples per pixel.
+    pub fn channels(&self) -> usize {
+        self.channels
+    }
+
+    /// `(width, height)`.
+    pub fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    /// All samples, row-major and interleaved.
+    pub fn data(&self) -> &[T] {
+        &self.data
+    }
+
+    /// All samples, mutable.
+    pub fn data_mut(&mut self) -> &mut [T] {
+        &mut self.data
+    }
+
+    /// The samples, giving up the image.
+    pub fn into_vec(self) -> Vec<T> {
+        self.data
+    }
+
+    /// The samples of pixel `(x, y)`.
+    pub fn pixel(&self, x: usize, y: usize) -> &[T] {
+        let start = (y * self.width + x) * self.channels;
+        &self.data[start..start + self.channels]
+    }
+
+    /// The samples of pixel `(x, y)`, mutable.
+    pub fn pixel_mut(&mut self, x: usize, y: usize) -> &mut [T] {
+        let start = (y * self.width + x) * self.channels;
+        &mut self.data[start..start + self.channels]
+    }
+
+    /// A new image with `f` applied to every sample.
+    pub fn map<U: Copy>(&self, f: impl Fn(T) -> U) -> Image<U> {
+        Image {
+            width: self.width,
+            height: self.height,
+            channels: self.channels,
+            data: self.data.iter().map(|&v| f(v)).collect(),
+        }
+    }
+
+    /// One channel as a single-channel image.
+    pub fn channel(&self, c: usize) -> Image<T> {
+        assert!(c < self.channels, "channel {c} of a {}-channel image", self.channels);
+        Image {
+            width: self.width,
+            height: self.height,
+            channels: 1,
+            data: self.data.iter().skip(c).step_by(self.channels).copied().collect(),
+        }
+    }
+
+    /// Error unless `other` has the same width and height; `what` names the pair in the message.
+    pub fn check_same_size<U>(&self, other: &Image<U>, what: &str) -> Result<()> {
+        if (self.width, self.height) != (other.width, other.height) {
+            return Err(Error::invalid(format!(
+                "{what}: {}x{} and {}x{} differ in size",
+                self.width, self.height, other.width, other.height
+            )));
+        }
+        Ok(())
+    }
+}
+
+impl Image<f32> {
+    /// Per-pixel mean over channels, as a single-channel image.
+    pub fn channel_mean(&self) -> Image<f32> {
+        let c = self.channels;
+        Image {
+            width: self.width,
+            height: self.height,
+            channels: 1,
+            data: self.data.chunks_exact(c).map(|p| p.iter().sum::<f32>() / c as f32).collect(),
+        }
+    }
+
+    /// The first non-finite sample as `(x, y, channel)`, if any.
+    pub fn first_non_finite(&self) -> Option<(usize, usize, usize)> {
+        let i = self.data.iter().position(|v| !v.is_finite())?;
+        let (p, c) = (i / self.channels, i % self.channels);
+        Some((p % self.width, p / self.width, c))
+    }
+}

@@ -1,0 +1,92 @@
+//! PNG images, 8 and 16 bits per sample, 1 to 4 channels (the `png` crate).
+
+use super::atomic::write_atomically;
+use crate::{Error, Image, Result};
+use png::{BitDepth, ColorType, Transformations};
+use std::io::BufReader;
+use std::path::Path;
+
+/// A decoded PNG, at the bit depth it was stored with.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PngImage {
+    /// 8 bits per sample (lower depths and palettes are expanded to this).
+    U8(Image<u8>),
+    /// 16 bits per sample.
+    U16(Image<u16>),
+}
+
+/// Read any PNG; palettes and depths below 8 bits are expanded to 8-bit samples.
+pub fn read_png(path: &Path) -> Result<PngImage> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut decoder = png::Decoder::new(BufReader::new(file));
+    decoder.set_transformations(Transformations::EXPAND);
+    let bad = |e: png::DecodingError| Error::format(path, format!("not a readable PNG: {e}"));
+    let mut reader = decoder.read_info().map_err(bad)?;
+    let size = reader.output_buffer_size().ok_or_else(|| Error::format(path, "PNG too large"))?;
+    let mut buf = vec![0u8; size];
+    let info = reader.next_frame(&mut buf).map_err(bad)?;
+    buf.truncate(info.buffer_size());
+    let (w, h) = (info.width as usize, info.height as usize);
+    let channels = info.color_type.samples();
+    let image = match info.bit_depth {
+        BitDepth::Sixteen => {
+            let samples = buf.chunks_exact(2).map(|b| u16::from_be_bytes([b[0], b[1]])).collect();
+            PngImage::U16(Image::from_vec(w, h, channels, samples)?)
+        }
+        _ => PngImage::U8(Image::from_vec(w, h, channels, buf)?),
+    };
+    Ok(image)
+}
+
+/// Read an 8-bit PNG; a 16-bit one is an error.
+pub fn read_png_u8(path: &Path) -> Result<Image<u8>> {
+    match read_png(path)? {
+        PngImage::U8(image) => Ok(image),
+        PngImage::U16(_) => Err(Error::format(path, "expected an 8-bit PNG, found 16-bit")),
+    }
+}
+
+/// Read a 16-bit PNG; an 8-bit one is an error.
+pub fn read_png_u16(path: &Path) -> Result<Image<u16>> {
+    match read_png(path)? {
+        PngImage::U16(image) => Ok(image),
+        PngImage::U8(_) => Err(Error::format(path, "expected a 16-bit PNG, found 8-bit")),
+    }
+}
+
+fn color_type(channels: usize, path: &Path) -> Result<ColorType> {
+    Ok(match channels {
+        1 => ColorType::Grayscale,
+        2 => ColorType::GrayscaleAlpha,
+        3 => ColorType::Rgb,
+        4 => ColorType::Rgba,
+        n => return Err(Error::format(path, format!("a PNG cannot hold {n} channels"))),
+    })
+}
+
+fn write_png_bytes(path: &Path, w: usize, h: usize, c: usize, depth: BitDepth, bytes: &[u8]) -> Result<()> {
+    let color = color_type(c, path)?;
+    write_atomically(path, |out| {
+        let mut encoder = png::Encoder::new(out, w as u32, h as u32);
+        encoder.set_color(color);
+        encoder.set_depth(depth);
+        encoder.set_compression(png::Compression::Fast);
+        let mut writer = encoder.write_header()?;
+        writer.write_image_data(bytes)?;
+        writer.finish()?;
+        Ok(())
+    })
+}
+
+/// Write an 8-bit PNG (1 to 4 channels).
+pub fn write_png_u8(path: &Path, image: &Image<u8>) -> Result<()> {
+    let (w, h) = image.size();
+    write_png_bytes(path, w, h, image.channels(), BitDepth::Eight, image.data())
+}
+
+/// Write a 16-bit PNG (1 to 4 channels).
+pub fn write_png_u16(path: &Path, image: &Image<u16>) -> Result<()> {
+    let (w, h) = image.size();
+    let bytes: Vec<u8> = image.data().iter().flat_map(|v| v.to_be_bytes()).collect();
+    write_png_bytes(path, w, h, image.channels(), BitDepth::Sixteen, &bytes)
+}

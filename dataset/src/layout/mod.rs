@@ -1,0 +1,77 @@
+//! Scene folders on disk: the official NeRSP loader's layout ([`nersp`]) and our canonical,
+//! manifest-based layout ([`canonical`]). Both are documented in `docs/formats.md`.
+
+pub mod canonical;
+pub mod nersp;
+
+use crate::{Error, Result, Scene};
+use std::path::Path;
+
+/// A scene folder layout.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Layout {
+    /// `cameras.npz`, `s0/ s1/ s2/ mask/ ...` (with the optional `gt/` and `polarized/` extras).
+    Nersp,
+    /// `scene.json` and `views/<name>/...`.
+    Canonical,
+}
+
+impl Layout {
+    /// Recognise the layout of a scene folder by its index file.
+    pub fn detect(dir: &Path) -> Result<Self> {
+        if dir.join(canonical::MANIFEST).is_file() {
+            Ok(Layout::Canonical)
+        } else if dir.join(nersp::CAMERAS).is_file() {
+            Ok(Layout::Nersp)
+        } else if !dir.is_dir() {
+            Err(Error::io(dir, std::io::Error::new(std::io::ErrorKind::NotFound, "no such scene folder")))
+        } else {
+            Err(Error::format(dir, format!("not a scene: neither {} nor {} found", canonical::MANIFEST, nersp::CAMERAS)))
+        }
+    }
+
+    /// The name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Layout::Nersp => "nersp",
+            Layout::Canonical => "rmvp",
+        }
+    }
+}
+
+/// Read a scene in whichever layout the folder has, and validate it.
+pub fn read_scene(dir: &Path) -> Result<Scene> {
+    let scene = match Layout::detect(dir)? {
+        Layout::Nersp => nersp::read(dir)?,
+        Layout::Canonical => canonical::read(dir)?,
+    };
+    scene.validate().map_err(|e| e.in_file(dir))?;
+    Ok(scene)
+}
+
+/// Validate and write a scene in the given layout; the index file is written last, so a folder
+/// whose writing was interrupted is never mistaken for a complete scene.
+pub fn write_scene(scene: &Scene, dir: &Path, layout: Layout) -> Result<()> {
+    scene.validate()?;
+    match layout {
+        Layout::Nersp => nersp::write(scene, dir),
+        Layout::Canonical => canonical::write(scene, dir),
+    }
+}
+
+/// An HxW or HxWxC float array as an image.
+pub(crate) fn image_from_array(path: &Path, a: crate::io::npy::Array<f32>) -> Result<crate::Image<f32>> {
+    let (h, w, c) = match a.shape[..] {
+        [h, w] => (h, w, 1),
+        [h, w, c] => (h, w, c),
+        _ => return Err(Error::format(path, format!("expected an HxW or HxWxC image, shape is {:?}", a.shape))),
+    };
+    crate::Image::from_vec(w, h, c, a.data).map_err(|e| e.in_file(path))
+}
+
+/// An image as an HxWxC array (HxW for one channel).
+pub(crate) fn array_from_image(image: &crate::Image<f32>) -> crate::io::npy::Array<f32> {
+    let (w, h, c) = (image.width(), image.height(), image.channels());
+    let shape = if c == 1 { vec![h, w] } else { vec![h, w, c] };
+    crate::io::npy::Array { shape, data: image.data().to_vec() }
+}

@@ -1,0 +1,148 @@
+//! Triangle meshes and point clouds with normals, colours and extra per-vertex properties,
+//! read and written as PLY ([`ply`]) and OBJ ([`obj`]).
+
+pub mod obj;
+pub mod ply;
+
+use crate::{Error, Result};
+use std::path::Path;
+
+/// The storage type of a per-vertex property, kept so that files round-trip without loss.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ScalarKind {
+    /// Signed 8-bit integer.
+    I8,
+    /// Unsigned 8-bit integer.
+    U8,
+    /// Signed 16-bit integer.
+    I16,
+    /// Unsigned 16-bit integer.
+    U16,
+    /// Signed 32-bit integer.
+    I32,
+    /// Unsigned 32-bit integer.
+    U32,
+    /// 32-bit float.
+    F32,
+    /// 64-bit float.
+    F64,
+}
+
+impl ScalarKind {
+    /// The full-scale value of an integer colour of this kind (255 for `U8`), 1 for floats.
+    pub fn color_full_scale(self) -> f64 {
+        match self {
+            ScalarKind::U8 | ScalarKind::I8 => 255.0,
+            ScalarKind::U16 | ScalarKind::I16 => 65535.0,
+            ScalarKind::U32 | ScalarKind::I32 => u32::MAX as f64,
+            ScalarKind::F32 | ScalarKind::F64 => 1.0,
+        }
+    }
+}
+
+/// A named per-vertex scalar (colour, roughness, confidence, ...), every type held exactly as
+/// `f64`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VertexProperty {
+    /// Property name as in the file (`red`, `roughness_0`, ...).
+    pub name: String,
+    /// Storage type in the file.
+    pub kind: ScalarKind,
+    /// One value per vertex.
+    pub values: Vec<f64>,
+}
+
+/// A triangle mesh (or, with no faces, a point cloud).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions.
+    pub positions: Vec<[f32; 3]>,
+    /// Per-vertex normals, if the file has them.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Triangles as vertex indices (polygons are split into fans on reading).
+    pub faces: Vec<[u32; 3]>,
+    /// Every other per-vertex property, in file order.
+    pub vertex_properties: Vec<VertexProperty>,
+}
+
+impl Mesh {
+    /// Read a mesh by extension: `.ply` or `.obj`.
+    pub fn read(path: &Path) -> Result<Self> {
+        let mesh = match extension(path).as_str() {
+            "ply" => ply::read_ply(path)?,
+            "obj" => obj::read_obj(path)?,
+            other => return Err(Error::format(path, format!("unknown mesh format {other:?} (use .ply or .obj)"))),
+        };
+        mesh.validate().map_err(|e| e.in_file(path))?;
+        Ok(mesh)
+    }
+
+    /// Write a mesh by extension: `.ply` (binary) or `.obj`.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        self.validate().map_err(|e| e.in_file(path))?;
+        match extension(path).as_str() {
+            "ply" => ply::write_ply(path, self, ply::PlyEncoding::Binary),
+            "obj" => obj::write_obj(path, self),
+            other => Err(Error::format(path, format!("unknown mesh format {other:?} (use .ply or .obj)"))),
+        }
+    }
+
+    /// The property called `name`, if present.
+    pub fn property(&self, name: &str) -> Option<&VertexProperty> {
+        self.vertex_properties.iter().find(|p| p.name == name)
+    }
+
+    /// Per-vertex RGB colours in `[0, 1]` from `red/green/blue` or `r/g/b` properties; integer
+    /// colours are divided by their full scale.
+    pub fn colors(&self) -> Option<Vec<[f32; 3]>> {
+        let channels = [["red", "green", "blue"], ["r", "g", "b"]]
+            .iter()
+            .find_map(|names| names.iter().map(|n| self.property(n)).collect::<Option<Vec<_>>>())?;
+        Some(
+            (0..self.positions.len())
+                .map(|i| [0, 1, 2].map(|c| (channels[c].values[i] / channels[c].kind.color_full_scale()) as f32))
+                .collect(),
+        )
+    }
+
+    /// Axis-aligned bounds `(min, max)`; `None` for an empty mesh.
+    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
+        let first = *self.positions.first()?;
+        Some(self.positions.iter().fold((first, first), |(lo, hi), p| {
+            ([0, 1, 2].map(|k| lo[k].min(p[k])), [0, 1, 2].map(|k| hi[k].max(p[k])))
+        }))
+    }
+
+    /// Check counts, indices and finiteness.
+    pub fn validate(&self) -> Result<()> {
+        let n = self.positions.len();
+        if let Some(i) = self.positions.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+            return Err(Error::invalid(format!("vertex {i} has a non-finite position")));
+        }
+        if let Some(normals) = &self.normals {
+            if normals.len() != n {
+                return Err(Error::invalid(format!("{} normals for {n} vertices", normals.len())));
+            }
+        }
+        for p in &self.vertex_properties {
+            if p.values.len() != n {
+                return Err(Error::invalid(format!("property {} has {} values for {n} vertices", p.name, p.values.len())));
+            }
+        }
+        if let Some((f, face)) = self.faces.iter().enumerate().find(|(_, f)| f.iter().any(|&i| i as usize >= n)) {
+            return Err(Error::invalid(format!("face {f} {face:?} refers to a vertex beyond the {n} vertices")));
+        }
+        Ok(())
+    }
+}
+
+fn extension(path: &Path) -> String {
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
+}
+
+/// Split a polygon into a triangle fan.
+fn push_fan(faces: &mut Vec<[u32; 3]>, polygon: &[u32]) {
+    for k in 1..polygon.len().saturating_sub(1) {
+        faces.push([polygon[0], polygon[k], polygon[k + 1]]);
+    }
+}

@@ -1,0 +1,241 @@
+//! Scenes: calibrated views with their polarization images, plus optional ground truth.
+
+use crate::polarization;
+use crate::{Camera, Error, Image, Mesh, Result};
+use nalgebra::Matrix4;
+use serde::{Deserialize, Serialize};
+
+/// What a view is for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Split {
+    /// Input to reconstruction.
+    Train,
+    /// Held out for evaluation (ground truth only).
+    Eval,
+}
+
+/// Stokes images `S0, S1, S2` of one view, linear radiance, in the image frame
+/// (see [`crate::polarization`]). All three have the same size and channel count (3 for RGB).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Stokes {
+    /// Total intensity.
+    pub s0: Image<f32>,
+    /// Horizontal minus vertical.
+    pub s1: Image<f32>,
+    /// Diagonal minus anti-diagonal.
+    pub s2: Image<f32>,
+}
+
+impl Stokes {
+    /// Check sizes and finiteness.
+    pub fn validate(&self) -> Result<()> {
+        for (name, other) in [("S1", &self.s1), ("S2", &self.s2)] {
+            self.s0.check_same_size(other, &format!("S0 and {name}"))?;
+            if other.channels() != self.s0.channels() {
+                return Err(Error::invalid(format!("S0 and {name} have different channel counts")));
+            }
+        }
+        for (name, image) in [("S0", &self.s0), ("S1", &self.s1), ("S2", &self.s2)] {
+            if let Some((x, y, c)) = image.first_non_finite() {
+                return Err(Error::invalid(format!("{name} is not finite at pixel ({x}, {y}) channel {c}")));
+            }
+        }
+        Ok(())
+    }
+
+    /// AoP of the channel-mean Stokes vector, in `[0, pi)` (the NeRSP definition for RGB data).
+    pub fn aop(&self) -> Image<f32> {
+        let (s1, s2) = (self.s1.channel_mean(), self.s2.channel_mean());
+        let data = s1.data().iter().zip(s2.data()).map(|(&a, &b)| polarization::aop(a, b)).collect();
+        Image::from_vec(s1.width(), s1.height(), 1, data).expect("same size")
+    }
+
+    /// DoP of the channel-mean Stokes vector.
+    pub fn dop(&self) -> Image<f32> {
+        let (s0, s1, s2) = (self.s0.channel_mean(), self.s1.channel_mean(), self.s2.channel_mean());
+        let data = (0..s0.data().len()).map(|i| polarization::dop(s0.data()[i], s1.data()[i], s2.data()[i])).collect();
+        Image::from_vec(s0.width(), s0.height(), 1, data).expect("same size")
+    }
+}
+
+/// The images behind the four polarizers (0, 45, 90, 135 degrees) as stored 16-bit counts:
+/// `count = round(clip(I * scale, 0, 1) * 65535)` with `I` the linear intensity.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PolarizerImages {
+    /// Linear intensity to full-scale factor.
+    pub scale: f64,
+    /// One image per angle of [`polarization::POLARIZER_ANGLES_DEG`].
+    pub images: [Image<u16>; 4],
+}
+
+/// One calibrated view and whatever images it has.
+#[derive(Clone, Debug, PartialEq)]
+pub struct View {
+    /// Unique name (`000`, ...), used for file names.
+    pub name: String,
+    /// Training input or evaluation only.
+    pub split: Split,
+    /// Calibration.
+    pub camera: Camera,
+    /// The 4x4 projection `K [R | t]` exactly as a source file gave it (IDR `world_mat`); kept so
+    /// that conversions are bit-exact. It always agrees with `camera` to rounding.
+    pub projection: Option<Matrix4<f64>>,
+    /// Stokes images.
+    pub stokes: Option<Stokes>,
+    /// Object mask, 8-bit (0 background, 255 object).
+    pub mask: Option<Image<u8>>,
+    /// Angle of polarization in radians, one channel.
+    pub aop: Option<Image<f32>>,
+    /// Degree of polarization, one channel.
+    pub dop: Option<Image<f32>>,
+    /// Ground-truth world-frame unit normals, 3 channels, 0 outside the object.
+    pub normals: Option<Image<f32>>,
+    /// The polarizer images the Stokes were computed from.
+    pub polarized: Option<PolarizerImages>,
+    /// An 8-bit preview picture of S0.
+    pub preview: Option<Image<u8>>,
+}
+
+impl View {
+    /// A view with a camera and nothing else.
+    pub fn new(name: impl Into<String>, split: Split, camera: Camera) -> Self {
+        Self {
+            name: name.into(),
+            split,
+            camera,
+            projection: None,
+            stokes: None,
+            mask: None,
+            aop: None,
+            dop: None,
+            normals: None,
+            polarized: None,
+            preview: None,
+        }
+    }
+
+    /// `projection` if present, else the one composed from the camera (distortion aside).
+    pub fn projection_matrix(&self) -> Matrix4<f64> {
+        self.projection.unwrap_or_else(|| {
+            let mut m = Matrix4::identity();
+            m.fixed_view_mut::<3, 4>(0, 0).copy_from(&self.camera.projection());
+            m
+        })
+    }
+
+    /// Check that every image matches the camera's size and holds sane values.
+    pub fn validate(&self) -> Result<()> {
+        let context = |e: Error| Error::invalid(format!("view {}: {e}", self.name));
+        self.camera.validate().map_err(context)?;
+        let size = (self.camera.width as usize, self.camera.height as usize);
+        let check = |what: &str, got: (usize, usize)| {
+            if got != size {
+                return Err(Error::invalid(format!(
+                    "view {}: {what} is {}x{}, the camera {}x{}",
+                    self.name, got.0, got.1, size.0, size.1
+                )));
+            }
+            Ok(())
+        };
+        if let Some(s) = &self.stokes {
+            check("Stokes", s.s0.size())?;
+            s.validate().map_err(context)?;
+        }
+        if let Some(m) = &self.mask {
+            check("mask", m.size())?;
+        }
+        if let Some(a) = &self.aop {
+            check("AoP", a.size())?;
+        }
+        if let Some(d) = &self.dop {
+            check("DoP", d.size())?;
+        }
+        if let Some(p) = &self.polarized {
+            for (image, deg) in p.images.iter().zip(polarization::POLARIZER_ANGLES_DEG) {
+                check(&format!("polarizer image {deg}"), image.size())?;
+            }
+        }
+        if let Some(n) = &self.normals {
+            check("normal map", n.size())?;
+            if n.channels() != 3 {
+                return Err(Error::invalid(format!("view {}: normal map has {} channels, not 3", self.name, n.channels())));
+            }
+            let bad = n.data().chunks_exact(3).position(|v| {
+                let len2 = v.iter().map(|x| x * x).sum::<f32>();
+                !(len2.is_finite() && (len2 == 0.0 || (len2.sqrt() - 1.0).abs() < 1e-2))
+            });
+            if let Some(p) = bad {
+                return Err(Error::invalid(format!(
+                    "view {}: normal at pixel ({}, {}) is neither unit length nor zero",
+                    self.name,
+                    p % size.0,
+                    p / size.0
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A scene: its views and optional ground truth.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// Views, training views first by convention.
+    pub views: Vec<View>,
+    /// The similarity that maps the reconstruction's unit sphere into the world frame
+    /// (IDR/NeuS `scale_mat`); identity when the world is already normalised.
+    pub normalization: Matrix4<f64>,
+    /// Ground-truth mesh in the world frame.
+    pub mesh: Option<Mesh>,
+    /// Unpolarized lat-long environment map, RGB, top row = +Y.
+    pub env_map: Option<Image<f32>>,
+    /// Free-form provenance (generator, material, seeds, ...), kept through conversions.
+    pub metadata: serde_json::Map<String, serde_json::Value>,
+}
+
+impl Scene {
+    /// An empty scene with the identity normalisation.
+    pub fn new() -> Self {
+        Self { views: Vec::new(), normalization: Matrix4::identity(), mesh: None, env_map: None, metadata: Default::default() }
+    }
+
+    /// The training views, in order.
+    pub fn train_views(&self) -> impl Iterator<Item = &View> {
+        self.views.iter().filter(|v| v.split == Split::Train)
+    }
+
+    /// The view called `name`.
+    pub fn view(&self, name: &str) -> Option<&View> {
+        self.views.iter().find(|v| v.name == name)
+    }
+
+    /// Check every view, unique names, and the ground truth.
+    pub fn validate(&self) -> Result<()> {
+        let mut names = std::collections::BTreeSet::new();
+        for view in &self.views {
+            if !names.insert(view.name.as_str()) {
+                return Err(Error::invalid(format!("two views are named {}", view.name)));
+            }
+            view.validate()?;
+        }
+        if let Some(mesh) = &self.mesh {
+            mesh.validate().map_err(|e| Error::invalid(format!("ground-truth mesh: {e}")))?;
+        }
+        if let Some(env) = &self.env_map {
+            if let Some((x, y, c)) = env.first_non_finite() {
+                return Err(Error::invalid(format!("environment map is not finite at ({x}, {y}) channel {c}")));
+            }
+        }
+        if !self.normalization.iter().all(|v| v.is_finite()) || self.normalization.determinant().abs() < 1e-300 {
+            return Err(Error::invalid("normalization matrix is singular or not finite"));
+        }
+        Ok(())
+    }
+}
+
+impl Default for Scene {
+    fn default() -> Self {
+        Self::new()
+    }
+}

@@ -1,0 +1,111 @@
+//! Pictures for people: previews, AoP hue wheels, grey ramps and contact sheets (8-bit RGB).
+
+use crate::Image;
+use std::f32::consts::PI;
+
+/// The value at quantile `q` (0..1) of the finite samples, or 0 for none.
+pub fn quantile(values: &[f32], q: f32) -> f32 {
+    let mut v: Vec<f32> = values.iter().copied().filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return 0.0;
+    }
+    let k = ((v.len() - 1) as f32 * q.clamp(0.0, 1.0)).round() as usize;
+    *v.select_nth_unstable_by(k, f32::total_cmp).1
+}
+
+fn srgb_encode(linear: f32) -> u8 {
+    let c = linear.clamp(0.0, 1.0);
+    let s = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
+    (s * 255.0).round() as u8
+}
+
+fn to_rgb(image: &Image<f32>, f: impl Fn(f32) -> u8) -> Image<u8> {
+    let c = image.channels();
+    let data = image
+        .data()
+        .chunks_exact(c)
+        .flat_map(|p| if c >= 3 { [f(p[0]), f(p[1]), f(p[2])] } else { [f(p[0]); 3] })
+        .collect();
+    Image::from_vec(image.width(), image.height(), 3, data).expect("size kept")
+}
+
+/// An sRGB preview of linear radiance (1 or 3 channels), exposed so that the 99.5th percentile
+/// maps to 90 % of full scale.
+pub fn preview(linear: &Image<f32>) -> Image<u8> {
+    let white = quantile(linear.data(), 0.995).max(1e-12) / 0.9;
+    to_rgb(linear, |v| srgb_encode(v / white))
+}
+
+/// A single-channel value as a grey ramp: `lo` black, `hi` white.
+pub fn gray_ramp(image: &Image<f32>, lo: f32, hi: f32) -> Image<u8> {
+    to_rgb(&image.channel(0), |v| ((v - lo) / (hi - lo) * 255.0).clamp(0.0, 255.0).round() as u8)
+}
+
+/// HSV (hue in turns, saturation and value in `[0, 1]`) to 8-bit RGB.
+pub fn hsv_to_rgb(hue: f32, saturation: f32, value: f32) -> [u8; 3] {
+    let h = hue.rem_euclid(1.0) * 6.0;
+    let f = |n: f32| {
+        let k = (n + h) % 6.0;
+        value - value * saturation * k.min(4.0 - k).clamp(0.0, 1.0)
+    };
+    [f(5.0), f(3.0), f(1.0)].map(|v| (v * 255.0).round() as u8)
+}
+
+/// AoP as a hue wheel (0 red, pi/3 green, 2pi/3 blue, back to red at pi), its brightness the
+/// DoP relative to `dop_full` (brightest at or above it); pixels outside `mask` are black.
+pub fn aop_picture(aop: &Image<f32>, dop: &Image<f32>, dop_full: f32, mask: Option<&Image<u8>>) -> Image<u8> {
+    let mut out = Image::new(aop.width(), aop.height(), 3);
+    for (i, px) in out.data_mut().chunks_exact_mut(3).enumerate() {
+        if mask.is_some_and(|m| m.data()[i * m.channels()] == 0) {
+            continue;
+        }
+        let value = (dop.data()[i] / dop_full).clamp(0.0, 1.0);
+        px.copy_from_slice(&hsv_to_rgb(aop.data()[i] / PI, 1.0, value));
+    }
+    out
+}
+
+/// Tiles of equal size side by side, `columns` per row, separated by a 4-pixel dark border.
+pub fn contact_sheet(tiles: &[Image<u8>], columns: usize) -> Image<u8> {
+    const GAP: usize = 4;
+    let (w, h) = tiles.first().map_or((0, 0), |t| t.size());
+    let columns = columns.max(1).min(tiles.len().max(1));
+    let rows = tiles.len().div_ceil(columns);
+    let mut sheet = Image::new(columns * (w + GAP) + GAP, rows * (h + GAP) + GAP, 3);
+    sheet.data_mut().fill(32);
+    for (k, tile) in tiles.iter().enumerate() {
+        let (x0, y0) = (GAP + (k % columns) * (w + GAP), GAP + (k / columns) * (h + GAP));
+        for y in 0..h.min(tile.height()) {
+            for x in 0..w.min(tile.width()) {
+                let p = tile.pixel(x, y);
+                let rgb = if p.len() >= 3 { [p[0], p[1], p[2]] } else { [p[0]; 3] };
+                sheet.pixel_mut(x0 + x, y0 + y).copy_from_slice(&rgb);
+            }
+        }
+    }
+    sheet
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hue_wheel_primaries() {
+        assert_eq!(hsv_to_rgb(0.0, 1.0, 1.0), [255, 0, 0]);
+        assert_eq!(hsv_to_rgb(1.0 / 3.0, 1.0, 1.0), [0, 255, 0]);
+        assert_eq!(hsv_to_rgb(2.0 / 3.0, 1.0, 1.0), [0, 0, 255]);
+        assert_eq!(hsv_to_rgb(0.5, 0.0, 0.5), [128, 128, 128]);
+    }
+
+    #[test]
+    fn contact_sheet_places_tiles() {
+        let tile = |v: u8| Image::from_vec(2, 2, 3, vec![v; 12]).unwrap();
+        let sheet = contact_sheet(&[tile(10), tile(20), tile(30)], 2);
+        assert_eq!(sheet.size(), (2 * 6 + 4, 2 * 6 + 4));
+        assert_eq!(sheet.pixel(4, 4), &[10, 10, 10]);
+        assert_eq!(sheet.pixel(10, 4), &[20, 20, 20]);
+        assert_eq!(sheet.pixel(4, 10), &[30, 30, 30]);
+        assert_eq!(sheet.pixel(10, 10), &[32, 32, 32]);
+    }
+}
