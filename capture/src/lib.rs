@@ -1,1 +1,20 @@
+//! From raw polarization-camera frames to Stokes images: pixel-format decoding ([`raw`]), the
+//! sensor's polarizer/colour mosaic ([`mosaic`]), OpenCV demosaicing ([`demosaic`]), Stokes
+//! estimation ([`stokes`]), corrections ([`correction`]) and the whole per-frame chain
+//! ([`pipeline`]).
+//!
+//! Target sensor: Sony IMX250MYR (FLIR Blackfly S BFS-U3-51S5PC-C), 2448x2048, each 2x2 cell of
+//! polarizers `[90 45; 135 0]` under one colour of an RGGB Bayer pattern; and its mono sibling
+//! IMX250MZR. Polarization conventions are those of [`rmvp_dataset::polarization`].
 
+pub mod correction;
+pub mod demosaic;
+pub mod error;
+pub mod mosaic;
+pub mod pipeline;
+pub mod raw;
+pub mod stokes;
+
+pub use error::{Error, Result};
+pub use pipeline::{FrameProcessor, ProcessedFrame};
+pub use raw::{PixelFormat, RawFrame};

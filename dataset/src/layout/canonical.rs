@@ -131,16 +131,7 @@ fn read_view(dir: &Path, record: &ViewRecord) -> Result<View> {
     view.projection = record.projection.as_ref().map(from_rows4);
     let f = &record.files;
     if let Some(file) = &f.stokes {
-        let path = dir.join(file);
-        let (_, _, channels) = exr::read_exr_channels(&path)?;
-        let per_component = if channels.iter().any(|(n, _)| n == "S0.R") { 3 } else { 1 };
-        let names = stokes_channels(per_component);
-        let all = exr::read_exr(&path, &names.iter().map(String::as_str).collect::<Vec<_>>())?;
-        let component = |k: usize| {
-            let planes: Vec<Image<f32>> = (0..per_component).map(|c| all.channel(k * per_component + c)).collect();
-            interleave(&planes)
-        };
-        view.stokes = Some(Stokes { s0: component(0), s1: component(1), s2: component(2) });
+        view.stokes = Some(read_stokes(&dir.join(file))?);
     }
     if let Some(file) = &f.mask {
         view.mask = Some(png::read_png_u8(&dir.join(file))?);
@@ -163,6 +154,29 @@ fn read_view(dir: &Path, record: &ViewRecord) -> Result<View> {
         view.preview = Some(png::read_png_u8(&dir.join(file))?);
     }
     Ok(view)
+}
+
+/// Read Stokes images from one EXR file with channels `S0.R S0.G S0.B S1.R ...` (RGB) or
+/// `S0 S1 S2` (mono).
+pub fn read_stokes(path: &Path) -> Result<Stokes> {
+    let (_, _, channels) = exr::read_exr_channels(path)?;
+    let per_component = if channels.iter().any(|(n, _)| n == "S0.R") { 3 } else { 1 };
+    let names = stokes_channels(per_component);
+    let all = exr::read_exr(path, &names.iter().map(String::as_str).collect::<Vec<_>>())?;
+    let component = |k: usize| {
+        let planes: Vec<Image<f32>> = (0..per_component).map(|c| all.channel(k * per_component + c)).collect();
+        interleave(&planes)
+    };
+    Ok(Stokes { s0: component(0), s1: component(1), s2: component(2) })
+}
+
+/// Write Stokes images (1 or 3 channels each) to one EXR file, as [`read_stokes`] reads them.
+pub fn write_stokes(path: &Path, s: &Stokes) -> Result<()> {
+    let per_component = s.s0.channels();
+    let planes: Vec<Image<f32>> = [&s.s0, &s.s1, &s.s2].iter().flat_map(|img| (0..per_component).map(|c| img.channel(c))).collect();
+    let names = stokes_channels(per_component);
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    exr::write_exr(path, &interleave(&planes), &names)
 }
 
 /// Interleave single-channel planes of one size into one image.
@@ -199,11 +213,7 @@ fn write_view(dir: &Path, view: &View) -> Result<ViewRecord> {
         Ok(Some(relative))
     };
     if let Some(s) = &view.stokes {
-        let per_component = s.s0.channels();
-        let planes: Vec<Image<f32>> = [&s.s0, &s.s1, &s.s2].iter().flat_map(|img| (0..per_component).map(|c| img.channel(c))).collect();
-        let names = stokes_channels(per_component);
-        let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        files.stokes = put("stokes.exr", &|p| exr::write_exr(p, &interleave(&planes), &names))?;
+        files.stokes = put("stokes.exr", &|p| write_stokes(p, s))?;
     }
     if let Some(m) = &view.mask {
         files.mask = put("mask.png", &|p| png::write_png_u8(p, m))?;

@@ -1,0 +1,40 @@
+//! Errors of frame processing.
+
+use std::path::PathBuf;
+
+/// Result alias of this crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What went wrong while decoding or processing a frame.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A data-model or file error (names the file).
+    #[error(transparent)]
+    Dataset(#[from] rmvp_dataset::Error),
+    /// A frame whose bytes do not match its declared format and size.
+    #[error("{source_name}: {message}")]
+    Frame {
+        /// The file or device the frame came from.
+        source_name: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// A processing request that cannot be met (unsupported combination of options).
+    #[error("{0}")]
+    Unsupported(String),
+    /// OpenCV reported an error.
+    #[error("OpenCV: {0}")]
+    OpenCv(#[from] opencv::Error),
+}
+
+impl Error {
+    /// A frame error for `source_name` (a file path or a device).
+    pub fn frame(source_name: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::Frame { source_name: source_name.into(), message: message.into() }
+    }
+
+    /// A frame error for a file.
+    pub fn in_file(path: &std::path::Path, message: impl Into<String>) -> Self {
+        Self::frame(PathBuf::from(path).display().to_string(), message)
+    }
+}
