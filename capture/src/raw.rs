@@ -240,7 +240,7 @@ mod tests {
 
     fn frame(bits: u8) -> RawFrame {
         let max = (1u32 << bits) - 1;
-        let data = (0..16 * 8).map(|i| ((i as u32 * 2654435761) % (max + 1)) as u16).collect();
+        let data = (0..16 * 8).map(|i| ((i as u32).wrapping_mul(2654435761) % (max + 1)) as u16).collect();
         RawFrame { layout: SensorLayout::ColorPolarized, bits, pixels: Image::from_vec(16, 8, 1, data).unwrap() }
     }
 
