@@ -1,1 +1,51 @@
-fn main(){}
+//! `rmvp`: polarized multi-view capture, datasets and reconstruction of reflective objects.
+
+mod commands;
+
+use clap::{Parser, Subcommand};
+
+/// Polarized multi-view capture, datasets and NeRSP reconstruction of reflective objects.
+#[derive(Parser)]
+#[command(name = "rmvp", version, about)]
+struct Cli {
+    /// Worker threads (default: all cores).
+    #[arg(long, global = true)]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run the pipeline on the built-in example and write a report.
+    Demo(commands::demo::Args),
+    /// Raw polarization-camera frames to angle images, Stokes, AoP and DoP.
+    Demosaic(commands::demosaic::Args),
+    /// Four polarizer images (0, 45, 90, 135 degrees) to Stokes, AoP and DoP.
+    Stokes(commands::stokes::Args),
+    /// Summarise and validate a scene folder (NeRSP or rmvp layout).
+    Info(commands::info::Args),
+    /// Convert a scene between the NeRSP and rmvp layouts, without loss.
+    Convert(commands::convert::Args),
+}
+
+fn main() {
+    let cli = Cli::parse();
+    if let Some(n) = cli.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .expect("thread pool set once");
+    }
+    let result = match cli.command {
+        Command::Demo(args) => commands::demo::run(args),
+        Command::Demosaic(args) => commands::demosaic::run(args),
+        Command::Stokes(args) => commands::stokes::run(args),
+        Command::Info(args) => commands::info::run(args),
+        Command::Convert(args) => commands::convert::run(args),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}

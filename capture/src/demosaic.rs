@@ -28,7 +28,9 @@ impl DemosaicMethod {
             "bilinear" => Ok(Self::Bilinear),
             "edge-aware" | "ea" => Ok(Self::EdgeAware),
             "vng" => Ok(Self::Vng),
-            other => Err(Error::Unsupported(format!("unknown demosaicing method {other:?} (bilinear, edge-aware, vng)"))),
+            other => Err(Error::Unsupported(format!(
+                "unknown demosaicing method {other:?} (bilinear, edge-aware, vng)"
+            ))),
         }
     }
 
@@ -53,11 +55,19 @@ pub fn demosaic(mosaic: &Image<u16>, bits: u8, method: DemosaicMethod) -> Result
         let bytes: Vec<u8> = mosaic.data().iter().map(|&v| v as u8).collect();
         let src = Mat::new_rows_cols_with_data(h as i32, w as i32, &bytes)?;
         imgproc::cvt_color_def(&src, &mut dst, code)?;
-        let rgb: Vec<u16> = dst.data_typed::<Vec3b>()?.iter().flat_map(|p| p.0.map(u16::from)).collect();
+        let rgb: Vec<u16> = dst
+            .data_typed::<Vec3b>()?
+            .iter()
+            .flat_map(|p| p.0.map(u16::from))
+            .collect();
         return Ok(Image::from_vec(w, h, 3, rgb)?);
     }
     let src = Mat::new_rows_cols_with_data(h as i32, w as i32, mosaic.data())?;
     imgproc::cvt_color_def(&src, &mut dst, code)?;
-    let rgb: Vec<u16> = dst.data_typed::<Vec3w>()?.iter().flat_map(|p| p.0).collect();
+    let rgb: Vec<u16> = dst
+        .data_typed::<Vec3w>()?
+        .iter()
+        .flat_map(|p| p.0)
+        .collect();
     Ok(Image::from_vec(w, h, 3, rgb)?)
 }

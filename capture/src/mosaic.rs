@@ -45,12 +45,15 @@ pub fn split(raw: &RawFrame) -> [Image<u16>; 4] {
     let src = raw.pixels.data();
     POLARIZER_OFFSETS.map(|(dx, dy)| {
         let mut sub = Image::new(w / 2, h / 2, 1);
-        sub.data_mut().par_chunks_mut(w / 2).enumerate().for_each(|(y, row)| {
-            let line = &src[(2 * y + dy) * w..(2 * y + dy + 1) * w];
-            for (x, out) in row.iter_mut().enumerate() {
-                *out = line[2 * x + dx];
-            }
-        });
+        sub.data_mut()
+            .par_chunks_mut(w / 2)
+            .enumerate()
+            .for_each(|(y, row)| {
+                let line = &src[(2 * y + dy) * w..(2 * y + dy + 1) * w];
+                for (x, out) in row.iter_mut().enumerate() {
+                    *out = line[2 * x + dx];
+                }
+            });
         sub
     })
 }
@@ -65,12 +68,21 @@ pub fn compose(layout: SensorLayout, bits: u8, angle_images: &[Image<u16>; 4]) -
         let c = image.channels();
         for y in 0..h {
             for x in 0..w {
-                let channel = if layout == SensorLayout::ColorPolarized { bayer_channel(x, y) } else { 0 };
-                pixels.pixel_mut(2 * x + dx, 2 * y + dy)[0] = image.data()[(y * w + x) * c + channel];
+                let channel = if layout == SensorLayout::ColorPolarized {
+                    bayer_channel(x, y)
+                } else {
+                    0
+                };
+                pixels.pixel_mut(2 * x + dx, 2 * y + dy)[0] =
+                    image.data()[(y * w + x) * c + channel];
             }
         }
     }
-    RawFrame { layout, bits, pixels }
+    RawFrame {
+        layout,
+        bits,
+        pixels,
+    }
 }
 
 #[cfg(test)]
@@ -81,7 +93,12 @@ mod tests {
     fn polarizer_cell_is_90_45_135_0() {
         // Sensor pixel (x, y) -> angle, read straight off the cell [90 45; 135 0].
         let angles = [0, 45, 90, 135];
-        let at = |x: usize, y: usize| angles[POLARIZER_OFFSETS.iter().position(|&o| o == (x % 2, y % 2)).unwrap()];
+        let at = |x: usize, y: usize| {
+            angles[POLARIZER_OFFSETS
+                .iter()
+                .position(|&o| o == (x % 2, y % 2))
+                .unwrap()]
+        };
         assert_eq!([at(0, 0), at(1, 0), at(0, 1), at(1, 1)], [90, 45, 135, 0]);
     }
 
@@ -92,7 +109,11 @@ mod tests {
         });
         let raw = compose(SensorLayout::MonoPolarized, 12, &images);
         assert_eq!(raw.pixels.size(), (8, 4));
-        assert_eq!(raw.pixels.pixel(0, 0)[0], 200, "90 degrees at the cell's top left");
+        assert_eq!(
+            raw.pixels.pixel(0, 0)[0],
+            200,
+            "90 degrees at the cell's top left"
+        );
         assert_eq!(split(&raw), images);
     }
 }

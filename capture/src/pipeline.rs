@@ -72,7 +72,14 @@ impl FrameProcessor {
             correct_colors(&mut stokes, m)?;
         }
         let (aop, dop) = aop_dop(&stokes);
-        Ok(ProcessedFrame { bits: raw.bits, angles, stokes, aop, dop, saturated: estimate.saturated })
+        Ok(ProcessedFrame {
+            bits: raw.bits,
+            angles,
+            stokes,
+            aop,
+            dop,
+            saturated: estimate.saturated,
+        })
     }
 }
 
@@ -82,52 +89,85 @@ pub fn aop_dop(stokes: &Stokes) -> (Image<f32>, Image<f32>) {
     let mut aop = Image::new(w, h, 1);
     let mut dop = Image::new(w, h, 1);
     let scale = 1.0 / c as f32;
-    aop.data_mut().par_chunks_mut(w).zip(dop.data_mut().par_chunks_mut(w)).enumerate().for_each(|(y, (a_row, d_row))| {
-        let range = y * w * c..(y + 1) * w * c;
-        let (s0, s1, s2) = (&stokes.s0.data()[range.clone()], &stokes.s1.data()[range.clone()], &stokes.s2.data()[range]);
-        for x in 0..w {
-            let mean = |s: &[f32]| s[x * c..(x + 1) * c].iter().sum::<f32>() * scale;
-            let (m0, m1, m2) = (mean(s0), mean(s1), mean(s2));
-            a_row[x] = polarization::aop(m1, m2);
-            d_row[x] = polarization::dop(m0, m1, m2);
-        }
-    });
+    aop.data_mut()
+        .par_chunks_mut(w)
+        .zip(dop.data_mut().par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(y, (a_row, d_row))| {
+            let range = y * w * c..(y + 1) * w * c;
+            let (s0, s1, s2) = (
+                &stokes.s0.data()[range.clone()],
+                &stokes.s1.data()[range.clone()],
+                &stokes.s2.data()[range],
+            );
+            for x in 0..w {
+                let mean = |s: &[f32]| s[x * c..(x + 1) * c].iter().sum::<f32>() * scale;
+                let (m0, m1, m2) = (mean(s0), mean(s1), mean(s2));
+                a_row[x] = polarization::aop(m1, m2);
+                d_row[x] = polarization::dop(m0, m1, m2);
+            }
+        });
     (aop, dop)
 }
 
 impl ProcessedFrame {
-    /// Save as `DIR/STEM_000.png ... _135.png` (16-bit, linear, full scale = 65535),
-    /// `STEM_stokes.exr`, `STEM_aop.exr`, `STEM_dop.exr`, and the pictures `STEM_aop.png` (hue
-    /// wheel weighted by DoP), `STEM_dop.png` (grey ramp 0 to 1) and `STEM_s0.png` (preview).
-    /// Returns the files written.
+    /// Save as `DIR/STEM_000.png ... _135.png` (16-bit, linear, full scale = 65535) and the
+    /// polarization products of [`write_polarization`]. Returns the files written.
     pub fn write(&self, dir: &Path, stem: &str) -> Result<Vec<PathBuf>> {
-        let file = |suffix: &str| dir.join(format!("{stem}_{suffix}"));
         let mut written = Vec::new();
         let full_scale = ((1u32 << self.bits) - 1) as f32;
         for (image, deg) in self.angles.iter().zip(POLARIZER_ANGLES_DEG) {
-            let path = file(&format!("{deg:03}.png"));
-            png::write_png_u16(&path, &image.map(|v| (v as f32 * 65535.0 / full_scale).round() as u16))?;
+            let path = dir.join(format!("{stem}_{deg:03}.png"));
+            png::write_png_u16(
+                &path,
+                &image.map(|v| (v as f32 * 65535.0 / full_scale).round() as u16),
+            )?;
             written.push(path);
         }
-        let outputs: [(&str, &dyn Fn(&Path) -> rmvp_dataset::Result<()>); 6] = [
-            ("stokes.exr", &|p| write_stokes(p, &self.stokes)),
-            ("aop.exr", &|p| exr::write_exr(p, &self.aop, &["AoP"])),
-            ("dop.exr", &|p| exr::write_exr(p, &self.dop, &["DoP"])),
-            ("aop.png", &|p| png::write_png_u8(p, &self.aop_picture())),
-            ("dop.png", &|p| png::write_png_u8(p, &visualize::gray_ramp(&self.dop, 0.0, 1.0))),
-            ("s0.png", &|p| png::write_png_u8(p, &visualize::preview(&self.stokes.s0))),
-        ];
-        for (suffix, write) in outputs {
-            let path = file(suffix);
-            write(&path)?;
-            written.push(path);
-        }
+        written.extend(write_polarization(
+            dir,
+            stem,
+            &self.stokes,
+            &self.aop,
+            &self.dop,
+        )?);
         Ok(written)
     }
+}
 
-    /// The AoP hue wheel, brightness by DoP (full at the frame's 99th DoP percentile).
-    pub fn aop_picture(&self) -> Image<u8> {
-        let full = visualize::quantile(self.dop.data(), 0.99).clamp(1e-3, 1.0);
-        visualize::aop_picture(&self.aop, &self.dop, full, None)
+/// Save Stokes, AoP and DoP as `DIR/STEM_stokes.exr`, `STEM_aop.exr`, `STEM_dop.exr`, and the
+/// pictures `STEM_aop.png` (hue wheel weighted by DoP), `STEM_dop.png` (grey ramp 0 to 1) and
+/// `STEM_s0.png` (preview). Returns the files written.
+pub fn write_polarization(
+    dir: &Path,
+    stem: &str,
+    stokes: &Stokes,
+    aop: &Image<f32>,
+    dop: &Image<f32>,
+) -> Result<Vec<PathBuf>> {
+    let outputs: [(&str, &dyn Fn(&Path) -> rmvp_dataset::Result<()>); 6] = [
+        ("stokes.exr", &|p| write_stokes(p, stokes)),
+        ("aop.exr", &|p| exr::write_exr(p, aop, &["AoP"])),
+        ("dop.exr", &|p| exr::write_exr(p, dop, &["DoP"])),
+        ("aop.png", &|p| png::write_png_u8(p, &aop_picture(aop, dop))),
+        ("dop.png", &|p| {
+            png::write_png_u8(p, &visualize::gray_ramp(dop, 0.0, 1.0))
+        }),
+        ("s0.png", &|p| {
+            png::write_png_u8(p, &visualize::preview(&stokes.s0))
+        }),
+    ];
+    let mut written = Vec::new();
+    for (suffix, write) in outputs {
+        let path = dir.join(format!("{stem}_{suffix}"));
+        write(&path)?;
+        written.push(path);
     }
+    Ok(written)
+}
+
+/// The AoP hue wheel, brightness by DoP (full at the image's 99th DoP percentile).
+pub fn aop_picture(aop: &Image<f32>, dop: &Image<f32>) -> Image<u8> {
+    let full = visualize::quantile(dop.data(), 0.99).clamp(1e-3, 1.0);
+    visualize::aop_picture(aop, dop, full, None)
 }

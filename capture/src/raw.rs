@@ -50,7 +50,11 @@ pub struct PixelFormat {
 
 impl PixelFormat {
     /// The colour polarization sensor's 12-bit packed format, `BayerRGPolarized12p`.
-    pub const BAYER_RG_POLARIZED_12P: PixelFormat = PixelFormat { family: FormatFamily::BayerRGPolarized, bits: 12, packed: true };
+    pub const BAYER_RG_POLARIZED_12P: PixelFormat = PixelFormat {
+        family: FormatFamily::BayerRGPolarized,
+        bits: 12,
+        packed: true,
+    };
 
     /// Parse a PFNC name: `BayerRGPolarized`, `BayerRG` (same layout on the colour polarization
     /// sensor), `Polarized` or `Mono` (mono polarization sensor), followed by `8`, `10`, `12`,
@@ -70,13 +74,25 @@ impl PixelFormat {
             "16" => (16, false),
             _ => return Err(unsupported()),
         };
-        Ok(Self { family, bits, packed })
+        Ok(Self {
+            family,
+            bits,
+            packed,
+        })
     }
 
     /// The PFNC name.
     pub fn name(&self) -> String {
-        let prefix = FormatFamily::ALL.iter().find(|(_, f)| *f == self.family).expect("listed").0;
-        format!("{prefix}{}{}", self.bits, if self.packed { "p" } else { "" })
+        let prefix = FormatFamily::ALL
+            .iter()
+            .find(|(_, f)| *f == self.family)
+            .expect("listed")
+            .0;
+        format!(
+            "{prefix}{}{}",
+            self.bits,
+            if self.packed { "p" } else { "" }
+        )
     }
 
     /// Bytes of a `width` x `height` frame in this format.
@@ -108,7 +124,13 @@ impl RawFrame {
     }
 
     /// Decode a frame buffer as the camera sent it. `source` names the file or device in errors.
-    pub fn decode(bytes: &[u8], format: PixelFormat, width: usize, height: usize, source: &str) -> Result<Self> {
+    pub fn decode(
+        bytes: &[u8],
+        format: PixelFormat,
+        width: usize,
+        height: usize,
+        source: &str,
+    ) -> Result<Self> {
         let expected = format.frame_bytes(width, height);
         if bytes.len() < expected {
             return Err(Error::frame(source, format!(
@@ -118,7 +140,10 @@ impl RawFrame {
             )));
         }
         if width % 4 != 0 || height % 4 != 0 {
-            return Err(Error::frame(source, format!("{width}x{height} is not a whole number of 4x4 mosaic tiles")));
+            return Err(Error::frame(
+                source,
+                format!("{width}x{height} is not a whole number of 4x4 mosaic tiles"),
+            ));
         }
         let n = width * height;
         let data: Vec<u16> = match (format.bits, format.packed) {
@@ -127,21 +152,35 @@ impl RawFrame {
             (10, true) => unpack_10p(&bytes[..expected], n),
             (bits, _) => {
                 let max = ((1u32 << bits) - 1) as u16;
-                let words: Vec<u16> = bytes[..2 * n].chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])).collect();
+                let words: Vec<u16> = bytes[..2 * n]
+                    .chunks_exact(2)
+                    .map(|b| u16::from_le_bytes([b[0], b[1]]))
+                    .collect();
                 if let Some(i) = words.iter().position(|&w| w > max) {
-                    return Err(Error::frame(source, format!("pixel {i} holds {}, above the {bits}-bit range", words[i])));
+                    return Err(Error::frame(
+                        source,
+                        format!("pixel {i} holds {}, above the {bits}-bit range", words[i]),
+                    ));
                 }
                 words
             }
         };
         let pixels = Image::from_vec(width, height, 1, data).map_err(rmvp_dataset::Error::from)?;
-        Ok(Self { layout: format.family.layout(), bits: format.bits, pixels })
+        Ok(Self {
+            layout: format.family.layout(),
+            bits: format.bits,
+            pixels,
+        })
     }
 
     /// Encode the frame in a pixel format (the camera's side of [`RawFrame::decode`]).
     pub fn encode(&self, format: PixelFormat) -> Result<Vec<u8>> {
         if format.bits != self.bits {
-            return Err(Error::Unsupported(format!("cannot store {}-bit samples as {}", self.bits, format.name())));
+            return Err(Error::Unsupported(format!(
+                "cannot store {}-bit samples as {}",
+                self.bits,
+                format.name()
+            )));
         }
         let samples = self.pixels.data().iter().copied();
         Ok(match (format.bits, format.packed) {
@@ -155,21 +194,36 @@ impl RawFrame {
     /// Read a raw frame file: a `.png` mosaic (8- or 16-bit grey; samples of `bits` significant
     /// bits, 8 or 16 by default) or a bare buffer (`.raw`, `.bin`) in `format` and size.
     pub fn read(path: &Path, format: PixelFormat, width: usize, height: usize) -> Result<Self> {
-        let is_png = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
+        let is_png = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"));
         if is_png {
             let (pixels, depth) = match png::read_png(path)? {
                 png::PngImage::U8(i) => (i.map(u16::from), 8),
                 png::PngImage::U16(i) => (i, 16),
             };
             if pixels.channels() != 1 {
-                return Err(Error::in_file(path, format!("a raw mosaic has one channel, this PNG has {}", pixels.channels())));
+                return Err(Error::in_file(
+                    path,
+                    format!(
+                        "a raw mosaic has one channel, this PNG has {}",
+                        pixels.channels()
+                    ),
+                ));
             }
             let bits = if depth == 8 { 8 } else { format.bits.max(8) };
             let max = pixels.data().iter().copied().max().unwrap_or(0);
             if u32::from(max) >= 1u32 << bits {
-                return Err(Error::in_file(path, format!("sample {max} exceeds {bits} bits (pass the right --pixel-format)")));
+                return Err(Error::in_file(
+                    path,
+                    format!("sample {max} exceeds {bits} bits (pass the right --pixel-format)"),
+                ));
             }
-            return Ok(Self { layout: format.family.layout(), bits, pixels });
+            return Ok(Self {
+                layout: format.family.layout(),
+                bits,
+                pixels,
+            });
         }
         let bytes = std::fs::read(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
         Self::decode(&bytes, format, width, height, &path.display().to_string())
@@ -178,7 +232,10 @@ impl RawFrame {
     /// Write the frame: `.png` as a 16-bit (or, for 8-bit frames, 8-bit) grey mosaic, anything
     /// else as a bare buffer in `format`. Atomic.
     pub fn write(&self, path: &Path, format: PixelFormat) -> Result<()> {
-        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        {
             if self.bits == 8 {
                 png::write_png_u8(path, &self.pixels.map(|v| v as u8))?;
             } else {
@@ -207,7 +264,11 @@ fn pack_12p(samples: &[u16]) -> Vec<u8> {
         .chunks(2)
         .flat_map(|p| {
             let (a, b) = (p[0], p.get(1).copied().unwrap_or(0));
-            [a as u8, ((a >> 8) & 0x0f) as u8 | ((b & 0x0f) << 4) as u8, (b >> 4) as u8]
+            [
+                a as u8,
+                ((a >> 8) & 0x0f) as u8 | ((b & 0x0f) << 4) as u8,
+                (b >> 4) as u8,
+            ]
         })
         .collect()
 }
@@ -227,7 +288,9 @@ fn pack_10p(samples: &[u16]) -> Vec<u8> {
     samples
         .chunks(4)
         .flat_map(|p| {
-            let bits = (0..4).fold(0u64, |acc, k| acc | (u64::from(p.get(k).copied().unwrap_or(0)) & 0x3ff) << (10 * k));
+            let bits = (0..4).fold(0u64, |acc, k| {
+                acc | (u64::from(p.get(k).copied().unwrap_or(0)) & 0x3ff) << (10 * k)
+            });
             let le = bits.to_le_bytes();
             [le[0], le[1], le[2], le[3], le[4]]
         })
@@ -240,13 +303,28 @@ mod tests {
 
     fn frame(bits: u8) -> RawFrame {
         let max = (1u32 << bits) - 1;
-        let data = (0..16 * 8).map(|i| ((i as u32).wrapping_mul(2654435761) % (max + 1)) as u16).collect();
-        RawFrame { layout: SensorLayout::ColorPolarized, bits, pixels: Image::from_vec(16, 8, 1, data).unwrap() }
+        let data = (0..16 * 8)
+            .map(|i| ((i as u32).wrapping_mul(2654435761) % (max + 1)) as u16)
+            .collect();
+        RawFrame {
+            layout: SensorLayout::ColorPolarized,
+            bits,
+            pixels: Image::from_vec(16, 8, 1, data).unwrap(),
+        }
     }
 
     #[test]
     fn packed_formats_round_trip() {
-        for name in ["BayerRGPolarized8", "BayerRGPolarized10p", "BayerRGPolarized12p", "BayerRGPolarized16", "BayerRG12p", "BayerRG12", "Polarized12p", "Mono8"] {
+        for name in [
+            "BayerRGPolarized8",
+            "BayerRGPolarized10p",
+            "BayerRGPolarized12p",
+            "BayerRGPolarized16",
+            "BayerRG12p",
+            "BayerRG12",
+            "Polarized12p",
+            "Mono8",
+        ] {
             let format = PixelFormat::from_name(name).unwrap();
             assert_eq!(format.name(), name);
             let mut original = frame(format.bits);
@@ -269,12 +347,16 @@ mod tests {
     fn truncated_frames_are_reported() {
         let format = PixelFormat::BAYER_RG_POLARIZED_12P;
         let bytes = frame(12).encode(format).unwrap();
-        let err = RawFrame::decode(&bytes[..bytes.len() - 1], format, 16, 8, "cam0").unwrap_err().to_string();
+        let err = RawFrame::decode(&bytes[..bytes.len() - 1], format, 16, 8, "cam0")
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("cam0") && err.contains("truncated"), "{err}");
         let format12 = PixelFormat::from_name("BayerRG12").unwrap();
         let mut bytes = frame(12).encode(format12).unwrap();
         bytes[1] = 0xff;
-        let err = RawFrame::decode(&bytes, format12, 16, 8, "f.raw").unwrap_err().to_string();
+        let err = RawFrame::decode(&bytes, format12, 16, 8, "f.raw")
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("above the 12-bit range"), "{err}");
         assert!(PixelFormat::from_name("RGB8").is_err());
     }

@@ -51,7 +51,10 @@ impl StokesEstimator {
                 .collect();
             invert3([rows[0], rows[1], rows[2]]).map(|r| r.map(|v| v as f32))
         });
-        Self { saturation_level, drop_one }
+        Self {
+            saturation_level,
+            drop_one,
+        }
     }
 
     /// Stokes of one pixel and channel from counts `i` scaled by `gain` (1 / full scale).
@@ -70,7 +73,10 @@ impl StokesEstimator {
         let dropped = saturated.iter().position(|&s| s).expect("one");
         let kept: Vec<f32> = (0..4).filter(|&k| k != dropped).map(|k| v[k]).collect();
         let m = &self.drop_one[dropped];
-        (m.map(|row| row[0] * kept[0] + row[1] * kept[1] + row[2] * kept[2]), 1)
+        (
+            m.map(|row| row[0] * kept[0] + row[1] * kept[1] + row[2] * kept[2]),
+            1,
+        )
     }
 
     /// Stokes images from four polarizer images (0, 45, 90, 135 degrees) of counts whose full
@@ -78,7 +84,11 @@ impl StokesEstimator {
     pub fn estimate(&self, angles: &[Image<u16>; 4], full_scale: u16) -> StokesEstimate {
         let (w, h, c) = (angles[0].width(), angles[0].height(), angles[0].channels());
         let gain = 1.0 / full_scale as f32;
-        let mut s = [Image::new(w, h, c), Image::new(w, h, c), Image::new(w, h, c)];
+        let mut s = [
+            Image::new(w, h, c),
+            Image::new(w, h, c),
+            Image::new(w, h, c),
+        ];
         let mut saturated = Image::new(w, h, 1);
         let [s0, s1, s2] = &mut s;
         let row = w * c;
@@ -102,7 +112,10 @@ impl StokesEstimator {
                 }
             });
         let [s0, s1, s2] = s;
-        StokesEstimate { stokes: Stokes { s0, s1, s2 }, saturated }
+        StokesEstimate {
+            stokes: Stokes { s0, s1, s2 },
+            saturated,
+        }
     }
 }
 
@@ -112,7 +125,11 @@ mod tests {
     use rmvp_dataset::polarization::intensity;
 
     fn counts(s: [f32; 3], full: f32) -> [u16; 4] {
-        POLARIZER_ANGLES_DEG.map(|d| (intensity(s[0], s[1], s[2], (d as f32).to_radians()) * full).round().min(full) as u16)
+        POLARIZER_ANGLES_DEG.map(|d| {
+            (intensity(s[0], s[1], s[2], (d as f32).to_radians()) * full)
+                .round()
+                .min(full) as u16
+        })
     }
 
     #[test]
@@ -128,7 +145,10 @@ mod tests {
         }
         // Without saturation handling the clipped I0 biases S1.
         let (naive, _) = StokesEstimator::new(None).solve(counts(truth, 4095.0), 1.0 / 4095.0);
-        assert!((naive[1] - truth[1]).abs() > 0.15, "clipping I0 at 1.0 biases S1 by 0.2");
+        assert!(
+            (naive[1] - truth[1]).abs() > 0.15,
+            "clipping I0 at 1.0 biases S1 by 0.2"
+        );
     }
 
     #[test]
@@ -136,7 +156,10 @@ mod tests {
         let estimator = StokesEstimator::new(Some(u16::MAX));
         for dropped in 0..4 {
             let s = [0.7f32, -0.2, 0.3];
-            let i: Vec<f32> = POLARIZER_ANGLES_DEG.iter().map(|&d| intensity(s[0], s[1], s[2], (d as f32).to_radians())).collect();
+            let i: Vec<f32> = POLARIZER_ANGLES_DEG
+                .iter()
+                .map(|&d| intensity(s[0], s[1], s[2], (d as f32).to_radians()))
+                .collect();
             let kept: Vec<f32> = (0..4).filter(|&k| k != dropped).map(|k| i[k]).collect();
             let m = estimator.drop_one[dropped];
             for r in 0..3 {

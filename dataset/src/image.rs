@@ -14,7 +14,12 @@ pub struct Image<T> {
 impl<T: Copy + Default> Image<T> {
     /// An image filled with `T::default()`.
     pub fn new(width: usize, height: usize, channels: usize) -> Self {
-        Self { width, height, channels, data: vec![T::default(); width * height * channels] }
+        Self {
+            width,
+            height,
+            channels,
+            data: vec![T::default(); width * height * channels],
+        }
     }
 }
 
@@ -28,7 +33,12 @@ impl<T: Copy> Image<T> {
                 data.len()
             )));
         }
-        Ok(Self { width, height, channels, data })
+        Ok(Self {
+            width,
+            height,
+            channels,
+            data,
+        })
     }
 
     /// Pixels per row.
@@ -90,12 +100,22 @@ impl<T: Copy> Image<T> {
 
     /// One channel as a single-channel image.
     pub fn channel(&self, c: usize) -> Image<T> {
-        assert!(c < self.channels, "channel {c} of a {}-channel image", self.channels);
+        assert!(
+            c < self.channels,
+            "channel {c} of a {}-channel image",
+            self.channels
+        );
         Image {
             width: self.width,
             height: self.height,
             channels: 1,
-            data: self.data.iter().skip(c).step_by(self.channels).copied().collect(),
+            data: self
+                .data
+                .iter()
+                .skip(c)
+                .step_by(self.channels)
+                .copied()
+                .collect(),
         }
     }
 
@@ -119,7 +139,11 @@ impl Image<f32> {
             width: self.width,
             height: self.height,
             channels: 1,
-            data: self.data.chunks_exact(c).map(|p| p.iter().sum::<f32>() / c as f32).collect(),
+            data: self
+                .data
+                .chunks_exact(c)
+                .map(|p| p.iter().sum::<f32>() / c as f32)
+                .collect(),
         }
     }
 

@@ -14,7 +14,11 @@ pub const POLARIZER_ANGLES_DEG: [u32; 4] = [0, 45, 90, 135];
 
 /// The row of the measurement model: `I(theta) = row . (S0, S1, S2)`.
 pub fn measurement_row(theta_rad: f64) -> [f64; 3] {
-    [0.5, 0.5 * (2.0 * theta_rad).cos(), 0.5 * (2.0 * theta_rad).sin()]
+    [
+        0.5,
+        0.5 * (2.0 * theta_rad).cos(),
+        0.5 * (2.0 * theta_rad).sin(),
+    ]
 }
 
 /// Intensity behind a linear polarizer at `theta_rad`.
@@ -89,12 +93,26 @@ pub const AOP_U16_FULL_SCALE: f64 = 65535.0;
 
 /// Encode an AoP in `[0, pi)` as a 16-bit count (NeRSP `input_azimuth_maps`).
 pub fn aop_to_u16(aop: f32) -> u16 {
-    (aop as f64 / std::f64::consts::PI * AOP_U16_FULL_SCALE).round().clamp(0.0, AOP_U16_FULL_SCALE) as u16
+    (aop as f64 / std::f64::consts::PI * AOP_U16_FULL_SCALE)
+        .round()
+        .clamp(0.0, AOP_U16_FULL_SCALE) as u16
 }
 
 /// Decode a 16-bit AoP count to radians; [`aop_to_u16`] gives the count back exactly.
 pub fn aop_from_u16(count: u16) -> f32 {
     (count as f64 / AOP_U16_FULL_SCALE * std::f64::consts::PI) as f32
+}
+
+/// DoP of light leaving a dielectric of refractive index `eta` by diffuse (subsurface)
+/// reflection at zenith angle `theta` (Atkinson and Hancock 2006); its AoP is the azimuth of
+/// the surface normal.
+pub fn diffuse_dop(theta: f32, eta: f32) -> f32 {
+    let (s, c) = theta.sin_cos();
+    let s2 = s * s;
+    let a = (eta - 1.0 / eta).powi(2) * s2;
+    let b =
+        2.0 + 2.0 * eta * eta - (eta + 1.0 / eta).powi(2) * s2 + 4.0 * c * (eta * eta - s2).sqrt();
+    a / b
 }
 
 #[cfg(test)]
@@ -138,6 +156,26 @@ mod tests {
         let back = stokes_from_four(i);
         for k in 0..3 {
             assert!((back[k] - s[k]).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn diffuse_dop_matches_fresnel_transmission() {
+        // DoP of diffuse reflection = (T_p - T_s) / (T_p + T_s) for light refracted out of the
+        // material, with Fresnel transmittances at the internal angle.
+        let eta = 1.5f32;
+        for deg in [0.0f32, 20.0, 45.0, 70.0, 89.0] {
+            let theta_out = deg.to_radians();
+            let theta_in = (theta_out.sin() / eta).asin();
+            let (ci, co) = (theta_in.cos(), theta_out.cos());
+            let rs = ((eta * ci - co) / (eta * ci + co)).powi(2);
+            let rp = ((eta * co - ci) / (eta * co + ci)).powi(2);
+            let expected = ((1.0 - rp) - (1.0 - rs)) / ((1.0 - rp) + (1.0 - rs));
+            assert!(
+                (diffuse_dop(theta_out, eta) - expected).abs() < 1e-5,
+                "{deg}: {} vs {expected}",
+                diffuse_dop(theta_out, eta)
+            );
         }
     }
 

@@ -33,12 +33,16 @@ impl Stokes {
         for (name, other) in [("S1", &self.s1), ("S2", &self.s2)] {
             self.s0.check_same_size(other, &format!("S0 and {name}"))?;
             if other.channels() != self.s0.channels() {
-                return Err(Error::invalid(format!("S0 and {name} have different channel counts")));
+                return Err(Error::invalid(format!(
+                    "S0 and {name} have different channel counts"
+                )));
             }
         }
         for (name, image) in [("S0", &self.s0), ("S1", &self.s1), ("S2", &self.s2)] {
             if let Some((x, y, c)) = image.first_non_finite() {
-                return Err(Error::invalid(format!("{name} is not finite at pixel ({x}, {y}) channel {c}")));
+                return Err(Error::invalid(format!(
+                    "{name} is not finite at pixel ({x}, {y}) channel {c}"
+                )));
             }
         }
         Ok(())
@@ -47,14 +51,25 @@ impl Stokes {
     /// AoP of the channel-mean Stokes vector, in `[0, pi)` (the NeRSP definition for RGB data).
     pub fn aop(&self) -> Image<f32> {
         let (s1, s2) = (self.s1.channel_mean(), self.s2.channel_mean());
-        let data = s1.data().iter().zip(s2.data()).map(|(&a, &b)| polarization::aop(a, b)).collect();
+        let data = s1
+            .data()
+            .iter()
+            .zip(s2.data())
+            .map(|(&a, &b)| polarization::aop(a, b))
+            .collect();
         Image::from_vec(s1.width(), s1.height(), 1, data).expect("same size")
     }
 
     /// DoP of the channel-mean Stokes vector.
     pub fn dop(&self) -> Image<f32> {
-        let (s0, s1, s2) = (self.s0.channel_mean(), self.s1.channel_mean(), self.s2.channel_mean());
-        let data = (0..s0.data().len()).map(|i| polarization::dop(s0.data()[i], s1.data()[i], s2.data()[i])).collect();
+        let (s0, s1, s2) = (
+            self.s0.channel_mean(),
+            self.s1.channel_mean(),
+            self.s2.channel_mean(),
+        );
+        let data = (0..s0.data().len())
+            .map(|i| polarization::dop(s0.data()[i], s1.data()[i], s2.data()[i]))
+            .collect();
         Image::from_vec(s0.width(), s0.height(), 1, data).expect("same size")
     }
 }
@@ -119,7 +134,8 @@ impl View {
     pub fn projection_matrix(&self) -> Matrix4<f64> {
         self.projection.unwrap_or_else(|| {
             let mut m = Matrix4::identity();
-            m.fixed_view_mut::<3, 4>(0, 0).copy_from(&self.camera.projection());
+            m.fixed_view_mut::<3, 4>(0, 0)
+                .copy_from(&self.camera.projection());
             m
         })
     }
@@ -159,7 +175,11 @@ impl View {
         if let Some(n) = &self.normals {
             check("normal map", n.size())?;
             if n.channels() != 3 {
-                return Err(Error::invalid(format!("view {}: normal map has {} channels, not 3", self.name, n.channels())));
+                return Err(Error::invalid(format!(
+                    "view {}: normal map has {} channels, not 3",
+                    self.name,
+                    n.channels()
+                )));
             }
             let bad = n.data().chunks_exact(3).position(|v| {
                 let len2 = v.iter().map(|x| x * x).sum::<f32>();
@@ -197,7 +217,13 @@ pub struct Scene {
 impl Scene {
     /// An empty scene with the identity normalisation.
     pub fn new() -> Self {
-        Self { views: Vec::new(), normalization: Matrix4::identity(), mesh: None, env_map: None, metadata: Default::default() }
+        Self {
+            views: Vec::new(),
+            normalization: Matrix4::identity(),
+            mesh: None,
+            env_map: None,
+            metadata: Default::default(),
+        }
     }
 
     /// The training views, in order.
@@ -220,15 +246,22 @@ impl Scene {
             view.validate()?;
         }
         if let Some(mesh) = &self.mesh {
-            mesh.validate().map_err(|e| Error::invalid(format!("ground-truth mesh: {e}")))?;
+            mesh.validate()
+                .map_err(|e| Error::invalid(format!("ground-truth mesh: {e}")))?;
         }
         if let Some(env) = &self.env_map {
             if let Some((x, y, c)) = env.first_non_finite() {
-                return Err(Error::invalid(format!("environment map is not finite at ({x}, {y}) channel {c}")));
+                return Err(Error::invalid(format!(
+                    "environment map is not finite at ({x}, {y}) channel {c}"
+                )));
             }
         }
-        if !self.normalization.iter().all(|v| v.is_finite()) || self.normalization.determinant().abs() < 1e-300 {
-            return Err(Error::invalid("normalization matrix is singular or not finite"));
+        if !self.normalization.iter().all(|v| v.is_finite())
+            || self.normalization.determinant().abs() < 1e-300
+        {
+            return Err(Error::invalid(
+                "normalization matrix is singular or not finite",
+            ));
         }
         Ok(())
     }

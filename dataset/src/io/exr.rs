@@ -40,10 +40,13 @@ pub fn read_exr(path: &Path, names: &[&str]) -> Result<Image<f32>> {
     let (w, h, mut channels) = read_exr_channels(path)?;
     let mut planes = Vec::with_capacity(names.len());
     for name in names {
-        let i = channels.iter().position(|(n, _)| n == name).ok_or_else(|| {
-            let found: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
-            Error::format(path, format!("no channel {name:?} (channels: {found:?})"))
-        })?;
+        let i = channels
+            .iter()
+            .position(|(n, _)| n == name)
+            .ok_or_else(|| {
+                let found: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
+                Error::format(path, format!("no channel {name:?} (channels: {found:?})"))
+            })?;
         planes.push(std::mem::take(&mut channels[i].1));
     }
     let mut data = Vec::with_capacity(w * h * names.len());
@@ -58,7 +61,11 @@ pub fn write_exr(path: &Path, image: &Image<f32>, names: &[&str]) -> Result<()> 
     if names.len() != image.channels() {
         return Err(Error::format(
             path,
-            format!("{} channel names for a {}-channel image", names.len(), image.channels()),
+            format!(
+                "{} channel names for a {}-channel image",
+                names.len(),
+                image.channels()
+            ),
         ));
     }
     let list = names
@@ -74,6 +81,8 @@ pub fn write_exr(path: &Path, image: &Image<f32>, names: &[&str]) -> Result<()> 
     );
     let file = ExrFile::from_layer(layer);
     write_atomically(path, |out| {
-        file.write().to_buffered(out).map_err(|e| std::io::Error::other(e.to_string()))
+        file.write()
+            .to_buffered(out)
+            .map_err(|e| std::io::Error::other(e.to_string()))
     })
 }
