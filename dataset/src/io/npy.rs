@@ -44,7 +44,7 @@ fn read_array<T: Element, R: Read>(reader: R, path: &Path) -> Result<Array<T>> {
     }
     let shape: Vec<usize> = npy.shape().iter().map(|&n| n as usize).collect();
     let expected: usize = shape.iter().product();
-    let descr = npy.dtype().descr();
+    let descr = npy.dtype().descr().trim_matches('\'').to_string();
     let truncated = |e: std::io::Error| {
         Error::format(
             path,

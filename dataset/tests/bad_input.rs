@@ -1,0 +1,128 @@
+//! Corrupt, truncated, mismatched or missing files give errors that name the file and the fault.
+
+use rmvp_dataset::io::{exr, npy, png};
+use rmvp_dataset::layout::read_scene;
+use rmvp_dataset::{Image, Mesh};
+use std::path::{Path, PathBuf};
+
+fn spot() -> PathBuf {
+    let root = std::env::var_os("RMVP_FIXTURES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/fixtures"));
+    let dir = root.join("spot_nersp");
+    assert!(dir.is_dir(), "fixture {} missing; set RMVP_FIXTURES", dir.display());
+    dir
+}
+
+/// A writable copy of the spot fixture.
+fn copy_of_spot() -> (tempfile::TempDir, PathBuf) {
+    fn copy(from: &Path, to: &Path) {
+        std::fs::create_dir_all(to).unwrap();
+        for e in std::fs::read_dir(from).unwrap() {
+            let p = e.unwrap().path();
+            let target = to.join(p.file_name().unwrap());
+            if p.is_dir() {
+                copy(&p, &target);
+            } else {
+                std::fs::copy(&p, &target).unwrap();
+                let mut perms = std::fs::metadata(&target).unwrap().permissions();
+                #[allow(clippy::permissions_set_readonly_false)]
+                perms.set_readonly(false);
+                std::fs::set_permissions(&target, perms).unwrap();
+            }
+        }
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("spot");
+    copy(&spot(), &dir);
+    (tmp, dir)
+}
+
+fn truncate(from: &Path, to: &Path) {
+    let bytes = std::fs::read(from).unwrap();
+    std::fs::write(to, &bytes[..bytes.len() / 2]).unwrap();
+}
+
+fn assert_error_names(err: impl std::fmt::Display, file: &Path, words: &[&str]) {
+    let message = err.to_string();
+    assert!(message.contains(&file.display().to_string()), "{message:?} does not name {}", file.display());
+    for w in words {
+        assert!(message.contains(w), "{message:?} does not say {w:?}");
+    }
+}
+
+#[test]
+fn truncated_files_are_reported_with_their_name() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = spot();
+    let cases = [("mask/0000.png", "t.png"), ("gt/normal/000.exr", "t.exr"), ("s0/0000.npy", "t.npy"), ("gt/mesh.ply", "t.ply"), ("cameras.npz", "t.npz")];
+    for (source, name) in cases {
+        let path = tmp.path().join(name);
+        truncate(&dir.join(source), &path);
+        let err = match name {
+            "t.png" => png::read_png(&path).map(|_| ()).unwrap_err(),
+            "t.exr" => exr::read_exr(&path, &["N.X"]).map(|_| ()).unwrap_err(),
+            "t.npy" => npy::read_npy::<f32>(&path).map(|_| ()).unwrap_err(),
+            "t.ply" => Mesh::read(&path).map(|_| ()).unwrap_err(),
+            _ => npy::read_npz::<f64>(&path).map(|_| ()).unwrap_err(),
+        };
+        assert_error_names(err, &path, &[]);
+    }
+}
+
+#[test]
+fn ascii_and_binary_ply_round_trip_and_bad_indices_are_caught() {
+    let mesh = Mesh::read(&spot().join("gt/mesh.ply")).unwrap();
+    assert!(mesh.colors().is_some() && mesh.property("roughness_0").is_some() && mesh.normals.is_some());
+    let tmp = tempfile::tempdir().unwrap();
+    let ascii = tmp.path().join("ascii.ply");
+    rmvp_dataset::mesh::ply::write_ply(&ascii, &mesh, rmvp_dataset::mesh::ply::PlyEncoding::Ascii).unwrap();
+    assert!(std::fs::read_to_string(&ascii).unwrap().starts_with("ply\nformat ascii"));
+    assert_eq!(Mesh::read(&ascii).unwrap(), mesh);
+    let obj = tmp.path().join("m.obj");
+    mesh.write(&obj).unwrap();
+    let back = Mesh::read(&obj).unwrap();
+    assert_eq!((back.positions.len(), back.faces.len()), (mesh.positions.len(), mesh.faces.len()));
+    let mut broken = mesh.clone();
+    broken.faces[7] = [0, 1, mesh.positions.len() as u32];
+    let err = broken.write(&tmp.path().join("b.ply")).unwrap_err().to_string();
+    assert!(err.contains("face 7") && err.contains("b.ply"), "{err}");
+}
+
+#[test]
+fn a_missing_view_file_is_named() {
+    let (_tmp, dir) = copy_of_spot();
+    let missing = dir.join("s1/0003.npy");
+    std::fs::remove_file(&missing).unwrap();
+    assert_error_names(read_scene(&dir).unwrap_err(), &missing, &["No such file"]);
+}
+
+#[test]
+fn a_mask_of_the_wrong_size_is_reported() {
+    let (_tmp, dir) = copy_of_spot();
+    let mask = dir.join("mask/0002.png");
+    png::write_png_u8(&mask, &Image::new(64, 64, 1)).unwrap();
+    std::fs::remove_file(dir.join("gt/mask/002.png")).unwrap();
+    let err = read_scene(&dir).unwrap_err().to_string();
+    assert!(err.contains("view 002") && err.contains("mask is 64x64") && err.contains("128x128"), "{err}");
+}
+
+#[test]
+fn nan_in_stokes_is_reported_with_its_pixel() {
+    let (_tmp, dir) = copy_of_spot();
+    let path = dir.join("s2/0001.npy");
+    let mut a = npy::read_npy::<f32>(&path).unwrap();
+    a.data[(5 * 128 + 9) * 3 + 1] = f32::NAN;
+    npy::write_npy(&path, &a).unwrap();
+    let err = read_scene(&dir).unwrap_err().to_string();
+    assert!(err.contains("S2 is not finite at pixel (9, 5) channel 1") && err.contains("view 001"), "{err}");
+}
+
+#[test]
+fn a_folder_that_is_no_scene_is_reported() {
+    let tmp = tempfile::tempdir().unwrap();
+    let err = read_scene(tmp.path()).unwrap_err().to_string();
+    assert!(err.contains("not a scene"), "{err}");
+    let err = read_scene(&tmp.path().join("nope")).unwrap_err().to_string();
+    assert!(err.contains("nope") && err.contains("no such scene folder"), "{err}");
+}
