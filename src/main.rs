@@ -32,10 +32,7 @@ enum Command {
 fn main() {
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build_global()
-            .expect("thread pool set once");
+        rayon::ThreadPoolBuilder::new().num_threads(n).build_global().expect("thread pool set once");
     }
     let result = match cli.command {
         Command::Demo(args) => commands::demo::run(args),

@@ -1,1 +1,90 @@
-fn main() {}
+//! One full 2448x2048 BayerRGPolarized12p frame through decode, split, demosaic, Stokes, AoP
+//! and DoP: time per stage and frames per second. Run with `cargo bench --bench frame`
+//! (or `bench/frame.sh` for the side-by-side comparison with Python and OpenCV).
+
+use rmvp_capture::demosaic::{demosaic, demosaic_into, DemosaicMethod};
+use rmvp_capture::mosaic::{compose, split, split_into, SensorLayout};
+use rmvp_capture::pipeline::aop_dop_into;
+use rmvp_capture::stokes::{StokesEstimate, StokesEstimator};
+use rmvp_capture::{FrameProcessor, PixelFormat, ProcessedFrame, RawFrame};
+use rmvp_dataset::Image;
+use std::hint::black_box;
+use std::time::Instant;
+
+const ROUNDS: usize = 40;
+
+/// Median milliseconds of `ROUNDS` runs of `f` after three warm-up runs.
+fn time_ms<T>(mut f: impl FnMut() -> T) -> f64 {
+    for _ in 0..3 {
+        black_box(f());
+    }
+    let mut times: Vec<f64> = (0..ROUNDS)
+        .map(|_| {
+            let start = Instant::now();
+            black_box(f());
+            start.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[ROUNDS / 2]
+}
+
+fn main() {
+    if std::env::args().any(|a| a == "--test" || a == "--list") {
+        return; // `cargo test --all-targets` builds benches; nothing to check here.
+    }
+    // A frame with texture everywhere: pseudo-random 12-bit counts.
+    let mut state = 1u32;
+    let angles: [Image<u16>; 4] = std::array::from_fn(|_| {
+        let data = (0..1224 * 1024 * 3)
+            .map(|_| {
+                state ^= state << 13;
+                state ^= state >> 17;
+                state ^= state << 5;
+                (state % 4096) as u16
+            })
+            .collect();
+        Image::from_vec(1224, 1024, 3, data).unwrap()
+    });
+    let format = PixelFormat::BAYER_RG_POLARIZED_12P;
+    let bytes = compose(SensorLayout::ColorPolarized, 12, &angles).encode(format).unwrap();
+    let decode = || RawFrame::decode(&bytes, format, 2448, 2048, "bench").unwrap();
+    let raw = decode();
+    let subs = split(&raw);
+    let rgb: [Image<u16>; 4] = subs.clone().map(|s| demosaic(&s, 12, DemosaicMethod::Bilinear).unwrap());
+    let estimator = StokesEstimator::new(None);
+    let stokes = estimator.estimate(&rgb, 4095).stokes;
+    let processor = FrameProcessor::default();
+    // Steady state of a stream: every stage writes into buffers reused from frame to frame.
+    let mut subs_out: [Image<u16>; 4] = Default::default();
+    let mut rgb_out = rgb.clone();
+    let mut estimate = StokesEstimate::default();
+    let (mut aop, mut dop) = (Image::default(), Image::default());
+    let mut frame = ProcessedFrame::default();
+
+    let threads = rayon::current_num_threads();
+    println!(
+        "frame benchmark: 2448x2048 {} -> 4 x 1224x1024 RGB, {threads} threads, median of {ROUNDS}",
+        format.name()
+    );
+    let stages = [
+        ("decode 12p", time_ms(decode)),
+        ("split into 4 sub-mosaics", time_ms(|| split_into(&raw, &mut subs_out))),
+        (
+            "demosaic x4 (OpenCV bilinear)",
+            time_ms(|| {
+                for (s, out) in subs.iter().zip(&mut rgb_out) {
+                    demosaic_into(s, 12, DemosaicMethod::Bilinear, out).unwrap();
+                }
+            }),
+        ),
+        ("Stokes (least squares)", time_ms(|| estimator.estimate_into(&rgb, 4095, &mut estimate))),
+        ("AoP + DoP", time_ms(|| aop_dop_into(&stokes, &mut aop, &mut dop))),
+    ];
+    for (name, ms) in stages {
+        println!("  {name:<32} {ms:8.2} ms");
+    }
+    let total = time_ms(|| processor.process_into(&decode(), &mut frame).unwrap());
+    println!("  {:<32} {total:8.2} ms  = {:.1} frames/s", "whole frame (decode + process)", 1e3 / total);
+    println!("rust_ms_per_frame {total:.3}");
+}

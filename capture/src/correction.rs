@@ -1,8 +1,9 @@
 //! Sensor corrections: dark-frame subtraction (raw counts) and a colour-correction matrix
-//! (linear RGB, applied to the Stokes images, which commutes with the Stokes estimation).
+//! (linear RGB; the pipeline applies it to the Stokes images, which commutes with the Stokes
+//! estimation because both are linear).
 
 use crate::{Error, RawFrame, Result};
-use rmvp_dataset::{Image, Stokes};
+use rmvp_dataset::Image;
 
 /// Subtract a dark frame (the mean of frames taken with the lens capped), clamping at 0.
 pub fn subtract_dark(frame: &mut RawFrame, dark: &RawFrame) -> Result<()> {
@@ -25,45 +26,28 @@ pub fn subtract_dark(frame: &mut RawFrame, dark: &RawFrame) -> Result<()> {
 
 /// The per-pixel mean of several raw frames, rounded (for dark frames and K-frame averaging).
 pub fn mean_frame(frames: &[RawFrame]) -> Result<RawFrame> {
-    let first = frames
-        .first()
-        .ok_or_else(|| Error::Unsupported("no frames to average".into()))?;
+    let first = frames.first().ok_or_else(|| Error::Unsupported("no frames to average".into()))?;
     let mut sum = vec![0u32; first.pixels.data().len()];
     for f in frames {
         if f.pixels.size() != first.pixels.size() {
-            return Err(Error::Unsupported(
-                "frames to average differ in size".into(),
-            ));
+            return Err(Error::Unsupported("frames to average differ in size".into()));
         }
-        sum.iter_mut()
-            .zip(f.pixels.data())
-            .for_each(|(s, &v)| *s += v as u32);
+        sum.iter_mut().zip(f.pixels.data()).for_each(|(s, &v)| *s += v as u32);
     }
     let n = frames.len() as u32;
     let data = sum.into_iter().map(|s| ((s + n / 2) / n) as u16).collect();
     let pixels = Image::from_vec(first.pixels.width(), first.pixels.height(), 1, data)?;
-    Ok(RawFrame {
-        pixels,
-        ..first.clone()
-    })
+    Ok(RawFrame { pixels, ..first.clone() })
 }
 
-/// Apply a 3x3 colour-correction matrix (`out = M rgb`) to RGB Stokes images.
-pub fn correct_colors(stokes: &mut Stokes, m: &[[f32; 3]; 3]) -> Result<()> {
-    if stokes.s0.channels() != 3 {
-        return Err(Error::Unsupported(
-            "a colour-correction matrix needs RGB frames".into(),
-        ));
-    }
-    for image in [&mut stokes.s0, &mut stokes.s1, &mut stokes.s2] {
-        for p in image.data_mut().chunks_exact_mut(3) {
-            let rgb = [p[0], p[1], p[2]];
-            for (out, row) in p.iter_mut().zip(m) {
-                *out = row[0] * rgb[0] + row[1] * rgb[1] + row[2] * rgb[2];
-            }
+/// Apply a 3x3 colour-correction matrix (`out = M rgb`) to interleaved RGB samples in place.
+pub fn apply_color_matrix(rgb_samples: &mut [f32], m: &[[f32; 3]; 3]) {
+    for p in rgb_samples.chunks_exact_mut(3) {
+        let rgb = [p[0], p[1], p[2]];
+        for (out, row) in p.iter_mut().zip(m) {
+            *out = row[0] * rgb[0] + row[1] * rgb[1] + row[2] * rgb[2];
         }
     }
-    Ok(())
 }
 
 #[cfg(test)]
@@ -72,11 +56,7 @@ mod tests {
     use crate::mosaic::SensorLayout;
 
     fn frame(values: Vec<u16>) -> RawFrame {
-        RawFrame {
-            layout: SensorLayout::MonoPolarized,
-            bits: 12,
-            pixels: Image::from_vec(2, 1, 1, values).unwrap(),
-        }
+        RawFrame { layout: SensorLayout::MonoPolarized, bits: 12, pixels: Image::from_vec(2, 1, 1, values).unwrap() }
     }
 
     #[test]
@@ -94,14 +74,8 @@ mod tests {
 
     #[test]
     fn color_matrix_mixes_channels() {
-        let img = |v: Vec<f32>| Image::from_vec(1, 1, 3, v).unwrap();
-        let mut s = Stokes {
-            s0: img(vec![1.0, 2.0, 3.0]),
-            s1: img(vec![0.0; 3]),
-            s2: img(vec![1.0, 0.0, 0.0]),
-        };
-        correct_colors(&mut s, &[[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]).unwrap();
-        assert_eq!(s.s0.data(), &[3.0, 2.0, 1.0]);
-        assert_eq!(s.s2.data(), &[0.0, 0.0, 1.0]);
+        let mut samples = vec![1.0, 2.0, 3.0, 1.0, 0.0, 0.0];
+        apply_color_matrix(&mut samples, &[[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [1.0, 0.5, 0.0]]);
+        assert_eq!(samples, vec![3.0, 2.0, 2.0, 0.0, 0.0, 1.0]);
     }
 }

@@ -30,10 +30,7 @@ pub enum Error {
 impl Error {
     /// A frame error for `source_name` (a file path or a device).
     pub fn frame(source_name: impl Into<String>, message: impl Into<String>) -> Self {
-        Error::Frame {
-            source_name: source_name.into(),
-            message: message.into(),
-        }
+        Error::Frame { source_name: source_name.into(), message: message.into() }
     }
 
     /// A frame error for a file.

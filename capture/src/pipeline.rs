@@ -1,11 +1,11 @@
 //! The per-frame chain: dark subtraction, split, demosaic, Stokes, colour correction, AoP, DoP;
 //! and the files a processed frame is saved as.
 
-use crate::correction::{correct_colors, subtract_dark};
-use crate::demosaic::{demosaic, DemosaicMethod};
-use crate::mosaic::{split, SensorLayout};
-use crate::stokes::StokesEstimator;
-use crate::{RawFrame, Result};
+use crate::correction::{apply_color_matrix, subtract_dark};
+use crate::demosaic::{demosaic_into, DemosaicMethod};
+use crate::mosaic::{split_into, SensorLayout};
+use crate::stokes::{StokesEstimate, StokesEstimator};
+use crate::{Error, RawFrame, Result};
 use rayon::prelude::*;
 use rmvp_dataset::io::{exr, png};
 use rmvp_dataset::layout::canonical::write_stokes;
@@ -26,26 +26,34 @@ pub struct FrameProcessor {
     pub color_correction: Option<[[f32; 3]; 3]>,
 }
 
-/// Everything computed from one raw frame.
-#[derive(Clone, Debug)]
+/// Everything computed from one raw frame. Reuse one with [`FrameProcessor::process_into`] to
+/// process a stream without allocating per frame.
+#[derive(Clone, Debug, Default)]
 pub struct ProcessedFrame {
     /// Significant bits of the raw samples.
     pub bits: u8,
-    /// Demosaiced images behind the polarizers at 0, 45, 90, 135 degrees, raw counts.
+    /// The four polarizer sub-mosaics (0, 45, 90, 135 degrees) before demosaicing, raw counts.
+    pub mosaics: [Image<u16>; 4],
+    /// Demosaiced images behind the polarizers (for the mono sensor, the sub-mosaics), raw counts.
     pub angles: [Image<u16>; 4],
-    /// Stokes images in units of full scale.
-    pub stokes: Stokes,
+    /// Stokes images in units of full scale, and saturated angles per pixel (0 to 4).
+    pub estimate: StokesEstimate,
     /// AoP of the channel-mean Stokes vector, radians in `[0, pi)`.
     pub aop: Image<f32>,
     /// DoP of the channel-mean Stokes vector.
     pub dop: Image<f32>,
-    /// Saturated angles per pixel (0 to 4).
-    pub saturated: Image<u8>,
 }
 
 impl FrameProcessor {
     /// Process one raw frame.
     pub fn process(&self, raw: &RawFrame) -> Result<ProcessedFrame> {
+        let mut out = ProcessedFrame::default();
+        self.process_into(raw, &mut out)?;
+        Ok(out)
+    }
+
+    /// Process one raw frame into `out`, reusing its buffers.
+    pub fn process_into(&self, raw: &RawFrame, out: &mut ProcessedFrame) -> Result<()> {
         let corrected;
         let raw = match &self.dark {
             Some(dark) => {
@@ -56,58 +64,97 @@ impl FrameProcessor {
             }
             None => raw,
         };
-        let subs = split(raw);
-        let angles: [Image<u16>; 4] = match raw.layout {
-            SensorLayout::ColorPolarized => {
-                let [a, b, c, d] = subs.map(|sub| demosaic(&sub, raw.bits, self.method));
-                [a?, b?, c?, d?]
+        out.bits = raw.bits;
+        split_into(raw, &mut out.mosaics);
+        let (w, h) = out.mosaics[0].size();
+        for (sub, angle) in out.mosaics.iter().zip(&mut out.angles) {
+            match raw.layout {
+                SensorLayout::ColorPolarized => {
+                    angle.ensure_shape(w, h, 3);
+                    demosaic_into(sub, raw.bits, self.method, angle)?;
+                }
+                SensorLayout::MonoPolarized => angle.clone_from(sub),
             }
-            SensorLayout::MonoPolarized => subs,
-        };
+        }
         let full_scale = raw.full_scale();
         let estimator = StokesEstimator::new(self.saturation_aware.then_some(full_scale));
-        let estimate = estimator.estimate(&angles, full_scale);
-        let mut stokes = estimate.stokes;
-        if let Some(m) = &self.color_correction {
-            correct_colors(&mut stokes, m)?;
+        if self.color_correction.is_some() && raw.layout == SensorLayout::MonoPolarized {
+            return Err(Error::Unsupported("a colour-correction matrix needs RGB frames".into()));
         }
-        let (aop, dop) = aop_dop(&stokes);
-        Ok(ProcessedFrame {
-            bits: raw.bits,
-            angles,
-            stokes,
-            aop,
-            dop,
-            saturated: estimate.saturated,
-        })
+        // One pass over rows: Stokes, colour correction, AoP and DoP while the row is in cache.
+        let c = out.angles[0].channels();
+        let row = w * c;
+        let gain = 1.0 / full_scale as f32;
+        let Stokes { s0, s1, s2 } = &mut out.estimate.stokes;
+        for image in [&mut *s0, &mut *s1, &mut *s2] {
+            image.ensure_shape(w, h, c);
+        }
+        for image in [&mut out.aop, &mut out.dop] {
+            image.ensure_shape(w, h, 1);
+        }
+        out.estimate.saturated.ensure_shape(w, h, 1);
+        let angles = &out.angles;
+        s0.data_mut()
+            .par_chunks_mut(row)
+            .zip(s1.data_mut().par_chunks_mut(row))
+            .zip(s2.data_mut().par_chunks_mut(row))
+            .zip(out.estimate.saturated.data_mut().par_chunks_mut(w))
+            .zip(out.aop.data_mut().par_chunks_mut(w))
+            .zip(out.dop.data_mut().par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(y, (((((r0, r1), r2), sat), a_row), d_row))| {
+                let inputs = angles.each_ref().map(|a| &a.data()[y * row..(y + 1) * row]);
+                estimator.estimate_row(inputs, gain, [&mut *r0, &mut *r1, &mut *r2], sat);
+                if let Some(m) = &self.color_correction {
+                    for r in [&mut *r0, &mut *r1, &mut *r2] {
+                        apply_color_matrix(r, m);
+                    }
+                }
+                aop_dop_row([r0, r1, r2], c, a_row, d_row);
+            });
+        Ok(())
     }
 }
 
-/// AoP and DoP of the channel-mean Stokes vector, in one parallel pass.
+/// AoP and DoP of the channel-mean Stokes vector.
 pub fn aop_dop(stokes: &Stokes) -> (Image<f32>, Image<f32>) {
-    let (w, h, c) = (stokes.s0.width(), stokes.s0.height(), stokes.s0.channels());
-    let mut aop = Image::new(w, h, 1);
-    let mut dop = Image::new(w, h, 1);
-    let scale = 1.0 / c as f32;
-    aop.data_mut()
-        .par_chunks_mut(w)
-        .zip(dop.data_mut().par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(y, (a_row, d_row))| {
-            let range = y * w * c..(y + 1) * w * c;
-            let (s0, s1, s2) = (
-                &stokes.s0.data()[range.clone()],
-                &stokes.s1.data()[range.clone()],
-                &stokes.s2.data()[range],
-            );
-            for x in 0..w {
-                let mean = |s: &[f32]| s[x * c..(x + 1) * c].iter().sum::<f32>() * scale;
-                let (m0, m1, m2) = (mean(s0), mean(s1), mean(s2));
-                a_row[x] = polarization::aop(m1, m2);
-                d_row[x] = polarization::dop(m0, m1, m2);
-            }
-        });
+    let (mut aop, mut dop) = Default::default();
+    aop_dop_into(stokes, &mut aop, &mut dop);
     (aop, dop)
+}
+
+/// [`aop_dop`] into existing images, in one parallel pass.
+pub fn aop_dop_into(stokes: &Stokes, aop: &mut Image<f32>, dop: &mut Image<f32>) {
+    let (w, h, c) = (stokes.s0.width(), stokes.s0.height(), stokes.s0.channels());
+    aop.ensure_shape(w, h, 1);
+    dop.ensure_shape(w, h, 1);
+    aop.data_mut().par_chunks_mut(w).zip(dop.data_mut().par_chunks_mut(w)).enumerate().for_each(
+        |(y, (a_row, d_row))| {
+            let range = y * w * c..(y + 1) * w * c;
+            let rows = [&stokes.s0, &stokes.s1, &stokes.s2].map(|s| &s.data()[range.clone()]);
+            aop_dop_row(rows, c, a_row, d_row);
+        },
+    );
+}
+
+/// AoP and DoP of one row from its S0, S1, S2 rows of `c` interleaved channels.
+fn aop_dop_row(stokes_rows: [&[f32]; 3], c: usize, aop: &mut [f32], dop: &mut [f32]) {
+    let scale = 1.0 / c as f32;
+    let mean = |row: &[f32]| -> Vec<f32> {
+        match c {
+            1 => row.to_vec(),
+            3 => row.chunks_exact(3).map(|p| (p[0] + p[1] + p[2]) * scale).collect(),
+            _ => row.chunks_exact(c).map(|p| p.iter().sum::<f32>() * scale).collect(),
+        }
+    };
+    let [m0, m1, m2] = stokes_rows.map(mean);
+    // Contiguous, branch-free loops: both vectorise.
+    for ((a, &x), &y) in aop.iter_mut().zip(&m1).zip(&m2) {
+        *a = polarization::aop(x, y);
+    }
+    for (((d, &i), &x), &y) in dop.iter_mut().zip(&m0).zip(&m1).zip(&m2) {
+        *d = polarization::dop(i, x, y);
+    }
 }
 
 impl ProcessedFrame {
@@ -118,19 +165,10 @@ impl ProcessedFrame {
         let full_scale = ((1u32 << self.bits) - 1) as f32;
         for (image, deg) in self.angles.iter().zip(POLARIZER_ANGLES_DEG) {
             let path = dir.join(format!("{stem}_{deg:03}.png"));
-            png::write_png_u16(
-                &path,
-                &image.map(|v| (v as f32 * 65535.0 / full_scale).round() as u16),
-            )?;
+            png::write_png_u16(&path, &image.map(|v| (v as f32 * 65535.0 / full_scale).round() as u16))?;
             written.push(path);
         }
-        written.extend(write_polarization(
-            dir,
-            stem,
-            &self.stokes,
-            &self.aop,
-            &self.dop,
-        )?);
+        written.extend(write_polarization(dir, stem, &self.estimate.stokes, &self.aop, &self.dop)?);
         Ok(written)
     }
 }
@@ -145,17 +183,14 @@ pub fn write_polarization(
     aop: &Image<f32>,
     dop: &Image<f32>,
 ) -> Result<Vec<PathBuf>> {
-    let outputs: [(&str, &dyn Fn(&Path) -> rmvp_dataset::Result<()>); 6] = [
+    type Writer<'a> = &'a dyn Fn(&Path) -> rmvp_dataset::Result<()>;
+    let outputs: [(&str, Writer); 6] = [
         ("stokes.exr", &|p| write_stokes(p, stokes)),
         ("aop.exr", &|p| exr::write_exr(p, aop, &["AoP"])),
         ("dop.exr", &|p| exr::write_exr(p, dop, &["DoP"])),
         ("aop.png", &|p| png::write_png_u8(p, &aop_picture(aop, dop))),
-        ("dop.png", &|p| {
-            png::write_png_u8(p, &visualize::gray_ramp(dop, 0.0, 1.0))
-        }),
-        ("s0.png", &|p| {
-            png::write_png_u8(p, &visualize::preview(&stokes.s0))
-        }),
+        ("dop.png", &|p| png::write_png_u8(p, &visualize::gray_ramp(dop, 0.0, 1.0))),
+        ("s0.png", &|p| png::write_png_u8(p, &visualize::preview(&stokes.s0))),
     ];
     let mut written = Vec::new();
     for (suffix, write) in outputs {

@@ -3,6 +3,7 @@
 
 use crate::mosaic::SensorLayout;
 use crate::{Error, Result};
+use rayon::prelude::*;
 use rmvp_dataset::io::{png, write_bytes_atomically};
 use rmvp_dataset::Image;
 use std::path::Path;
@@ -50,11 +51,8 @@ pub struct PixelFormat {
 
 impl PixelFormat {
     /// The colour polarization sensor's 12-bit packed format, `BayerRGPolarized12p`.
-    pub const BAYER_RG_POLARIZED_12P: PixelFormat = PixelFormat {
-        family: FormatFamily::BayerRGPolarized,
-        bits: 12,
-        packed: true,
-    };
+    pub const BAYER_RG_POLARIZED_12P: PixelFormat =
+        PixelFormat { family: FormatFamily::BayerRGPolarized, bits: 12, packed: true };
 
     /// Parse a PFNC name: `BayerRGPolarized`, `BayerRG` (same layout on the colour polarization
     /// sensor), `Polarized` or `Mono` (mono polarization sensor), followed by `8`, `10`, `12`,
@@ -74,25 +72,13 @@ impl PixelFormat {
             "16" => (16, false),
             _ => return Err(unsupported()),
         };
-        Ok(Self {
-            family,
-            bits,
-            packed,
-        })
+        Ok(Self { family, bits, packed })
     }
 
     /// The PFNC name.
     pub fn name(&self) -> String {
-        let prefix = FormatFamily::ALL
-            .iter()
-            .find(|(_, f)| *f == self.family)
-            .expect("listed")
-            .0;
-        format!(
-            "{prefix}{}{}",
-            self.bits,
-            if self.packed { "p" } else { "" }
-        )
+        let prefix = FormatFamily::ALL.iter().find(|(_, f)| *f == self.family).expect("listed").0;
+        format!("{prefix}{}{}", self.bits, if self.packed { "p" } else { "" })
     }
 
     /// Bytes of a `width` x `height` frame in this format.
@@ -124,26 +110,20 @@ impl RawFrame {
     }
 
     /// Decode a frame buffer as the camera sent it. `source` names the file or device in errors.
-    pub fn decode(
-        bytes: &[u8],
-        format: PixelFormat,
-        width: usize,
-        height: usize,
-        source: &str,
-    ) -> Result<Self> {
+    pub fn decode(bytes: &[u8], format: PixelFormat, width: usize, height: usize, source: &str) -> Result<Self> {
         let expected = format.frame_bytes(width, height);
         if bytes.len() < expected {
-            return Err(Error::frame(source, format!(
-                "{} bytes, but a {width}x{height} {} frame needs {expected} (truncated or corrupt frame)",
-                bytes.len(),
-                format.name()
-            )));
-        }
-        if width % 4 != 0 || height % 4 != 0 {
             return Err(Error::frame(
                 source,
-                format!("{width}x{height} is not a whole number of 4x4 mosaic tiles"),
+                format!(
+                    "{} bytes, but a {width}x{height} {} frame needs {expected} (truncated or corrupt frame)",
+                    bytes.len(),
+                    format.name()
+                ),
             ));
+        }
+        if width % 4 != 0 || height % 4 != 0 {
+            return Err(Error::frame(source, format!("{width}x{height} is not a whole number of 4x4 mosaic tiles")));
         }
         let n = width * height;
         let data: Vec<u16> = match (format.bits, format.packed) {
@@ -152,10 +132,8 @@ impl RawFrame {
             (10, true) => unpack_10p(&bytes[..expected], n),
             (bits, _) => {
                 let max = ((1u32 << bits) - 1) as u16;
-                let words: Vec<u16> = bytes[..2 * n]
-                    .chunks_exact(2)
-                    .map(|b| u16::from_le_bytes([b[0], b[1]]))
-                    .collect();
+                let words: Vec<u16> =
+                    bytes[..2 * n].chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])).collect();
                 if let Some(i) = words.iter().position(|&w| w > max) {
                     return Err(Error::frame(
                         source,
@@ -165,22 +143,14 @@ impl RawFrame {
                 words
             }
         };
-        let pixels = Image::from_vec(width, height, 1, data).map_err(rmvp_dataset::Error::from)?;
-        Ok(Self {
-            layout: format.family.layout(),
-            bits: format.bits,
-            pixels,
-        })
+        let pixels = Image::from_vec(width, height, 1, data)?;
+        Ok(Self { layout: format.family.layout(), bits: format.bits, pixels })
     }
 
     /// Encode the frame in a pixel format (the camera's side of [`RawFrame::decode`]).
     pub fn encode(&self, format: PixelFormat) -> Result<Vec<u8>> {
         if format.bits != self.bits {
-            return Err(Error::Unsupported(format!(
-                "cannot store {}-bit samples as {}",
-                self.bits,
-                format.name()
-            )));
+            return Err(Error::Unsupported(format!("cannot store {}-bit samples as {}", self.bits, format.name())));
         }
         let samples = self.pixels.data().iter().copied();
         Ok(match (format.bits, format.packed) {
@@ -194,9 +164,7 @@ impl RawFrame {
     /// Read a raw frame file: a `.png` mosaic (8- or 16-bit grey; samples of `bits` significant
     /// bits, 8 or 16 by default) or a bare buffer (`.raw`, `.bin`) in `format` and size.
     pub fn read(path: &Path, format: PixelFormat, width: usize, height: usize) -> Result<Self> {
-        let is_png = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+        let is_png = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
         if is_png {
             let (pixels, depth) = match png::read_png(path)? {
                 png::PngImage::U8(i) => (i.map(u16::from), 8),
@@ -205,10 +173,7 @@ impl RawFrame {
             if pixels.channels() != 1 {
                 return Err(Error::in_file(
                     path,
-                    format!(
-                        "a raw mosaic has one channel, this PNG has {}",
-                        pixels.channels()
-                    ),
+                    format!("a raw mosaic has one channel, this PNG has {}", pixels.channels()),
                 ));
             }
             let bits = if depth == 8 { 8 } else { format.bits.max(8) };
@@ -219,11 +184,7 @@ impl RawFrame {
                     format!("sample {max} exceeds {bits} bits (pass the right --pixel-format)"),
                 ));
             }
-            return Ok(Self {
-                layout: format.family.layout(),
-                bits,
-                pixels,
-            });
+            return Ok(Self { layout: format.family.layout(), bits, pixels });
         }
         let bytes = std::fs::read(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
         Self::decode(&bytes, format, width, height, &path.display().to_string())
@@ -232,10 +193,7 @@ impl RawFrame {
     /// Write the frame: `.png` as a 16-bit (or, for 8-bit frames, 8-bit) grey mosaic, anything
     /// else as a bare buffer in `format`. Atomic.
     pub fn write(&self, path: &Path, format: PixelFormat) -> Result<()> {
-        if path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
-        {
+        if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("png")) {
             if self.bits == 8 {
                 png::write_png_u8(path, &self.pixels.map(|v| v as u8))?;
             } else {
@@ -247,14 +205,19 @@ impl RawFrame {
     }
 }
 
+/// Pixel groups per parallel task when unpacking.
+const UNPACK_GROUPS: usize = 8192;
+
 /// Unpack GenICam 12p: two pixels in three bytes, least significant bits first.
 fn unpack_12p(bytes: &[u8], n: usize) -> Vec<u16> {
-    let mut out = Vec::with_capacity(n + 1);
-    for b in bytes.chunks_exact(3) {
-        let (b0, b1, b2) = (b[0] as u16, b[1] as u16, b[2] as u16);
-        out.push(b0 | (b1 & 0x0f) << 8);
-        out.push(b1 >> 4 | b2 << 4);
-    }
+    let mut out = vec![0u16; n.div_ceil(2) * 2];
+    out.par_chunks_mut(2 * UNPACK_GROUPS).zip(bytes.par_chunks(3 * UNPACK_GROUPS)).for_each(|(o, b)| {
+        for (pair, b) in o.chunks_exact_mut(2).zip(b.chunks_exact(3)) {
+            let (b0, b1, b2) = (b[0] as u16, b[1] as u16, b[2] as u16);
+            pair[0] = b0 | (b1 & 0x0f) << 8;
+            pair[1] = b1 >> 4 | b2 << 4;
+        }
+    });
     out.truncate(n);
     out
 }
@@ -264,22 +227,22 @@ fn pack_12p(samples: &[u16]) -> Vec<u8> {
         .chunks(2)
         .flat_map(|p| {
             let (a, b) = (p[0], p.get(1).copied().unwrap_or(0));
-            [
-                a as u8,
-                ((a >> 8) & 0x0f) as u8 | ((b & 0x0f) << 4) as u8,
-                (b >> 4) as u8,
-            ]
+            [a as u8, ((a >> 8) & 0x0f) as u8 | ((b & 0x0f) << 4) as u8, (b >> 4) as u8]
         })
         .collect()
 }
 
 /// Unpack GenICam 10p: four pixels in five bytes, a little-endian bit stream.
 fn unpack_10p(bytes: &[u8], n: usize) -> Vec<u16> {
-    let mut out = Vec::with_capacity(n + 3);
-    for b in bytes.chunks_exact(5) {
-        let bits = u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], 0, 0, 0]);
-        out.extend((0..4).map(|k| ((bits >> (10 * k)) & 0x3ff) as u16));
-    }
+    let mut out = vec![0u16; n.div_ceil(4) * 4];
+    out.par_chunks_mut(4 * UNPACK_GROUPS).zip(bytes.par_chunks(5 * UNPACK_GROUPS)).for_each(|(o, b)| {
+        for (quad, b) in o.chunks_exact_mut(4).zip(b.chunks_exact(5)) {
+            let bits = u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], 0, 0, 0]);
+            for (k, v) in quad.iter_mut().enumerate() {
+                *v = ((bits >> (10 * k)) & 0x3ff) as u16;
+            }
+        }
+    });
     out.truncate(n);
     out
 }
@@ -288,9 +251,8 @@ fn pack_10p(samples: &[u16]) -> Vec<u8> {
     samples
         .chunks(4)
         .flat_map(|p| {
-            let bits = (0..4).fold(0u64, |acc, k| {
-                acc | (u64::from(p.get(k).copied().unwrap_or(0)) & 0x3ff) << (10 * k)
-            });
+            let bits =
+                (0..4).fold(0u64, |acc, k| acc | (u64::from(p.get(k).copied().unwrap_or(0)) & 0x3ff) << (10 * k));
             let le = bits.to_le_bytes();
             [le[0], le[1], le[2], le[3], le[4]]
         })
@@ -303,14 +265,8 @@ mod tests {
 
     fn frame(bits: u8) -> RawFrame {
         let max = (1u32 << bits) - 1;
-        let data = (0..16 * 8)
-            .map(|i| ((i as u32).wrapping_mul(2654435761) % (max + 1)) as u16)
-            .collect();
-        RawFrame {
-            layout: SensorLayout::ColorPolarized,
-            bits,
-            pixels: Image::from_vec(16, 8, 1, data).unwrap(),
-        }
+        let data = (0..16 * 8).map(|i| ((i as u32).wrapping_mul(2654435761) % (max + 1)) as u16).collect();
+        RawFrame { layout: SensorLayout::ColorPolarized, bits, pixels: Image::from_vec(16, 8, 1, data).unwrap() }
     }
 
     #[test]
@@ -347,16 +303,12 @@ mod tests {
     fn truncated_frames_are_reported() {
         let format = PixelFormat::BAYER_RG_POLARIZED_12P;
         let bytes = frame(12).encode(format).unwrap();
-        let err = RawFrame::decode(&bytes[..bytes.len() - 1], format, 16, 8, "cam0")
-            .unwrap_err()
-            .to_string();
+        let err = RawFrame::decode(&bytes[..bytes.len() - 1], format, 16, 8, "cam0").unwrap_err().to_string();
         assert!(err.contains("cam0") && err.contains("truncated"), "{err}");
         let format12 = PixelFormat::from_name("BayerRG12").unwrap();
         let mut bytes = frame(12).encode(format12).unwrap();
         bytes[1] = 0xff;
-        let err = RawFrame::decode(&bytes, format12, 16, 8, "f.raw")
-            .unwrap_err()
-            .to_string();
+        let err = RawFrame::decode(&bytes, format12, 16, 8, "f.raw").unwrap_err().to_string();
         assert!(err.contains("above the 12-bit range"), "{err}");
         assert!(PixelFormat::from_name("RGB8").is_err());
     }

@@ -12,7 +12,7 @@ use rmvp_dataset::polarization::{self, measurement_row, POLARIZER_ANGLES_DEG};
 use rmvp_dataset::{Image, Stokes};
 
 /// Stokes images with a per-pixel saturation count.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct StokesEstimate {
     /// Linear Stokes, in units of the sensor's full scale.
     pub stokes: Stokes,
@@ -51,10 +51,7 @@ impl StokesEstimator {
                 .collect();
             invert3([rows[0], rows[1], rows[2]]).map(|r| r.map(|v| v as f32))
         });
-        Self {
-            saturation_level,
-            drop_one,
-        }
+        Self { saturation_level, drop_one }
     }
 
     /// Stokes of one pixel and channel from counts `i` scaled by `gain` (1 / full scale).
@@ -73,24 +70,27 @@ impl StokesEstimator {
         let dropped = saturated.iter().position(|&s| s).expect("one");
         let kept: Vec<f32> = (0..4).filter(|&k| k != dropped).map(|k| v[k]).collect();
         let m = &self.drop_one[dropped];
-        (
-            m.map(|row| row[0] * kept[0] + row[1] * kept[1] + row[2] * kept[2]),
-            1,
-        )
+        (m.map(|row| row[0] * kept[0] + row[1] * kept[1] + row[2] * kept[2]), 1)
     }
 
     /// Stokes images from four polarizer images (0, 45, 90, 135 degrees) of counts whose full
     /// scale is `full_scale`.
     pub fn estimate(&self, angles: &[Image<u16>; 4], full_scale: u16) -> StokesEstimate {
+        let mut out = StokesEstimate::default();
+        self.estimate_into(angles, full_scale, &mut out);
+        out
+    }
+
+    /// [`StokesEstimator::estimate`] into an existing estimate, reusing its buffers.
+    pub fn estimate_into(&self, angles: &[Image<u16>; 4], full_scale: u16, out: &mut StokesEstimate) {
         let (w, h, c) = (angles[0].width(), angles[0].height(), angles[0].channels());
         let gain = 1.0 / full_scale as f32;
-        let mut s = [
-            Image::new(w, h, c),
-            Image::new(w, h, c),
-            Image::new(w, h, c),
-        ];
-        let mut saturated = Image::new(w, h, 1);
-        let [s0, s1, s2] = &mut s;
+        let Stokes { s0, s1, s2 } = &mut out.stokes;
+        for image in [&mut *s0, &mut *s1, &mut *s2] {
+            image.ensure_shape(w, h, c);
+        }
+        let saturated = &mut out.saturated;
+        saturated.ensure_shape(w, h, 1);
         let row = w * c;
         s0.data_mut()
             .par_chunks_mut(row)
@@ -100,21 +100,35 @@ impl StokesEstimator {
             .enumerate()
             .for_each(|(y, (((r0, r1), r2), sat))| {
                 let inputs = angles.each_ref().map(|a| &a.data()[y * row..(y + 1) * row]);
-                for x in 0..w {
-                    let mut worst = 0;
-                    for ch in 0..c {
-                        let k = x * c + ch;
-                        let (v, n) = self.solve(inputs.map(|a| a[k]), gain);
-                        (r0[k], r1[k], r2[k]) = (v[0], v[1], v[2]);
-                        worst = worst.max(n);
-                    }
-                    sat[x] = worst;
-                }
+                self.estimate_row(inputs, gain, [r0, r1, r2], sat);
             });
-        let [s0, s1, s2] = s;
-        StokesEstimate {
-            stokes: Stokes { s0, s1, s2 },
-            saturated,
+    }
+
+    /// One row: `inputs` are the four angle rows (interleaved channels), `gain` is 1 / full
+    /// scale, `out` the S0, S1, S2 rows and `saturated` one count per pixel.
+    pub fn estimate_row(&self, inputs: [&[u16]; 4], gain: f32, out: [&mut [f32]; 3], saturated: &mut [u8]) {
+        let [r0, r1, r2] = out;
+        // Equal lengths up front, so that the loops need no bounds checks.
+        let n = r0.len();
+        let (r1, r2, inputs) = (&mut r1[..n], &mut r2[..n], inputs.map(|a| &a[..n]));
+        if self.saturation_level.is_none() {
+            // The common case as a straight loop the compiler vectorises.
+            for k in 0..n {
+                let v = polarization::stokes_from_four(inputs.map(|a| a[k] as f32 * gain));
+                (r0[k], r1[k], r2[k]) = (v[0], v[1], v[2]);
+            }
+            saturated.fill(0);
+            return;
+        }
+        let c = r0.len() / saturated.len();
+        for (x, sat) in saturated.iter_mut().enumerate() {
+            let mut worst = 0;
+            for k in x * c..(x + 1) * c {
+                let (v, n) = self.solve(inputs.map(|a| a[k]), gain);
+                (r0[k], r1[k], r2[k]) = (v[0], v[1], v[2]);
+                worst = worst.max(n);
+            }
+            *sat = worst;
         }
     }
 }
@@ -125,11 +139,8 @@ mod tests {
     use rmvp_dataset::polarization::intensity;
 
     fn counts(s: [f32; 3], full: f32) -> [u16; 4] {
-        POLARIZER_ANGLES_DEG.map(|d| {
-            (intensity(s[0], s[1], s[2], (d as f32).to_radians()) * full)
-                .round()
-                .min(full) as u16
-        })
+        POLARIZER_ANGLES_DEG
+            .map(|d| (intensity(s[0], s[1], s[2], (d as f32).to_radians()) * full).round().min(full) as u16)
     }
 
     #[test]
@@ -145,10 +156,7 @@ mod tests {
         }
         // Without saturation handling the clipped I0 biases S1.
         let (naive, _) = StokesEstimator::new(None).solve(counts(truth, 4095.0), 1.0 / 4095.0);
-        assert!(
-            (naive[1] - truth[1]).abs() > 0.15,
-            "clipping I0 at 1.0 biases S1 by 0.2"
-        );
+        assert!((naive[1] - truth[1]).abs() > 0.15, "clipping I0 at 1.0 biases S1 by 0.2");
     }
 
     #[test]
@@ -156,10 +164,8 @@ mod tests {
         let estimator = StokesEstimator::new(Some(u16::MAX));
         for dropped in 0..4 {
             let s = [0.7f32, -0.2, 0.3];
-            let i: Vec<f32> = POLARIZER_ANGLES_DEG
-                .iter()
-                .map(|&d| intensity(s[0], s[1], s[2], (d as f32).to_radians()))
-                .collect();
+            let i: Vec<f32> =
+                POLARIZER_ANGLES_DEG.iter().map(|&d| intensity(s[0], s[1], s[2], (d as f32).to_radians())).collect();
             let kept: Vec<f32> = (0..4).filter(|&k| k != dropped).map(|k| i[k]).collect();
             let m = estimator.drop_one[dropped];
             for r in 0..3 {

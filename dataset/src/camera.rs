@@ -85,14 +85,7 @@ pub struct Camera {
 impl Camera {
     /// A camera from K, R, t and image size, without distortion.
     pub fn new(k: Matrix3<f64>, r: Matrix3<f64>, t: Vector3<f64>, width: u32, height: u32) -> Self {
-        Self {
-            k,
-            distortion: None,
-            r,
-            t,
-            width,
-            height,
-        }
+        Self { k, distortion: None, r, t, width, height }
     }
 
     /// The camera centre in world coordinates, `-R^T t`.
@@ -121,10 +114,7 @@ impl Camera {
             (x, y) = d.distort(x, y);
         }
         let k = &self.k;
-        Some(Point2::new(
-            k[(0, 0)] * x + k[(0, 1)] * y + k[(0, 2)],
-            k[(1, 1)] * y + k[(1, 2)],
-        ))
+        Some(Point2::new(k[(0, 0)] * x + k[(0, 1)] * y + k[(0, 2)], k[(1, 1)] * y + k[(1, 2)]))
     }
 
     /// Normalised camera coordinates `(x/z, y/z)` seen at continuous pixel `(u, v)`.
@@ -149,10 +139,7 @@ impl Camera {
     pub fn ray(&self, u: f64, v: f64) -> Ray {
         let (x, y) = self.normalized(u, v);
         let d = self.r.transpose() * Vector3::new(x, y, 1.0);
-        Ray {
-            origin: self.center(),
-            direction: d.normalize(),
-        }
+        Ray { origin: self.center(), direction: d.normalize() }
     }
 
     /// The world ray through the centre of pixel `(i, j)` (column `i`, row `j`).
@@ -172,12 +159,8 @@ impl Camera {
     /// positive focal lengths, `K[2][2] = 1` and a proper rotation, by RQ decomposition.
     pub fn from_projection(p: &Matrix3x4<f64>, width: u32, height: u32) -> Result<Self> {
         let m = p.fixed_view::<3, 3>(0, 0).into_owned();
-        if !m.iter().chain(p.column(3).iter()).all(|v| v.is_finite())
-            || m.determinant().abs() < 1e-300
-        {
-            return Err(Error::invalid(
-                "projection matrix is singular or not finite",
-            ));
+        if !m.iter().chain(p.column(3).iter()).all(|v| v.is_finite()) || m.determinant().abs() < 1e-300 {
+            return Err(Error::invalid("projection matrix is singular or not finite"));
         }
         // RQ of M through QR of the row-reversed transpose: M = K R, K upper triangular.
         let flip = Matrix3::new(0.0, 0.0, 1.0, 0.0, 1.0, 0.0, 1.0, 0.0, 0.0);
@@ -186,11 +169,7 @@ impl Camera {
         let mut k = flip * upper.transpose() * flip;
         let mut r = flip * q.transpose();
         // Make the diagonal of K positive: K R = (K D)(D R) with D = diag(+-1).
-        let d = Matrix3::from_diagonal(&Vector3::new(
-            k[(0, 0)].signum(),
-            k[(1, 1)].signum(),
-            k[(2, 2)].signum(),
-        ));
+        let d = Matrix3::from_diagonal(&Vector3::new(k[(0, 0)].signum(), k[(1, 1)].signum(), k[(2, 2)].signum()));
         k *= d;
         r = d * r;
         // P is defined up to scale: absorb the scale into t and choose the sign giving det R = +1.
@@ -200,11 +179,7 @@ impl Camera {
             scale = -scale;
         }
         k /= k[(2, 2)];
-        let t = k
-            .try_inverse()
-            .ok_or_else(|| Error::invalid("degenerate intrinsics"))?
-            * p.column(3)
-            / scale;
+        let t = k.try_inverse().ok_or_else(|| Error::invalid("degenerate intrinsics"))? * p.column(3) / scale;
         Ok(Self::new(k, r, t, width, height))
     }
 }
@@ -270,25 +245,16 @@ impl TryFrom<&CameraRecord> for Camera {
 impl Camera {
     /// Check that the camera is usable: finite, positive focal lengths, a rotation, a size.
     pub fn validate(&self) -> Result<()> {
-        let finite = self
-            .k
-            .iter()
-            .chain(self.r.iter())
-            .chain(self.t.iter())
-            .all(|v| v.is_finite());
+        let finite = self.k.iter().chain(self.r.iter()).chain(self.t.iter()).all(|v| v.is_finite());
         if !finite {
             return Err(Error::invalid("camera has non-finite entries"));
         }
         if self.k[(0, 0)] <= 0.0 || self.k[(1, 1)] <= 0.0 {
             return Err(Error::invalid("camera focal lengths must be positive"));
         }
-        let orthogonality = (self.r * self.r.transpose() - Matrix3::identity())
-            .abs()
-            .max();
+        let orthogonality = (self.r * self.r.transpose() - Matrix3::identity()).abs().max();
         if orthogonality > 1e-6 || (self.r.determinant() - 1.0).abs() > 1e-6 {
-            return Err(Error::invalid(format!(
-                "camera R is not a rotation (|R R^T - I| = {orthogonality:.2e})"
-            )));
+            return Err(Error::invalid(format!("camera R is not a rotation (|R R^T - I| = {orthogonality:.2e})")));
         }
         if self.width == 0 || self.height == 0 {
             return Err(Error::invalid("camera image size is zero"));

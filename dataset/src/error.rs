@@ -33,18 +33,12 @@ pub enum Error {
 impl Error {
     /// An I/O error on `path`.
     pub fn io(path: impl AsRef<Path>, source: std::io::Error) -> Self {
-        Error::Io {
-            path: path.as_ref().to_path_buf(),
-            source,
-        }
+        Error::Io { path: path.as_ref().to_path_buf(), source }
     }
 
     /// A content error in `path`.
     pub fn format(path: impl AsRef<Path>, message: impl Display) -> Self {
-        Error::Format {
-            path: path.as_ref().to_path_buf(),
-            message: message.to_string(),
-        }
+        Error::Format { path: path.as_ref().to_path_buf(), message: message.to_string() }
     }
 
     /// Inconsistent data.

@@ -3,7 +3,7 @@
 use crate::{Error, Result};
 
 /// `height` rows of `width` pixels of `channels` interleaved samples each.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Image<T> {
     width: usize,
     height: usize,
@@ -14,11 +14,14 @@ pub struct Image<T> {
 impl<T: Copy + Default> Image<T> {
     /// An image filled with `T::default()`.
     pub fn new(width: usize, height: usize, channels: usize) -> Self {
-        Self {
-            width,
-            height,
-            channels,
-            data: vec![T::default(); width * height * channels],
+        Self { width, height, channels, data: vec![T::default(); width * height * channels] }
+    }
+
+    /// Make this image `width x height x channels`, keeping its buffer (and stale samples) when
+    /// it already has that shape: lets per-frame work reuse memory instead of allocating.
+    pub fn ensure_shape(&mut self, width: usize, height: usize, channels: usize) {
+        if (self.width, self.height, self.channels) != (width, height, channels) {
+            *self = Self::new(width, height, channels);
         }
     }
 }
@@ -33,12 +36,7 @@ impl<T: Copy> Image<T> {
                 data.len()
             )));
         }
-        Ok(Self {
-            width,
-            height,
-            channels,
-            data,
-        })
+        Ok(Self { width, height, channels, data })
     }
 
     /// Pixels per row.
@@ -100,22 +98,12 @@ impl<T: Copy> Image<T> {
 
     /// One channel as a single-channel image.
     pub fn channel(&self, c: usize) -> Image<T> {
-        assert!(
-            c < self.channels,
-            "channel {c} of a {}-channel image",
-            self.channels
-        );
+        assert!(c < self.channels, "channel {c} of a {}-channel image", self.channels);
         Image {
             width: self.width,
             height: self.height,
             channels: 1,
-            data: self
-                .data
-                .iter()
-                .skip(c)
-                .step_by(self.channels)
-                .copied()
-                .collect(),
+            data: self.data.iter().skip(c).step_by(self.channels).copied().collect(),
         }
     }
 
@@ -139,11 +127,7 @@ impl Image<f32> {
             width: self.width,
             height: self.height,
             channels: 1,
-            data: self
-                .data
-                .chunks_exact(c)
-                .map(|p| p.iter().sum::<f32>() / c as f32)
-                .collect(),
+            data: self.data.chunks_exact(c).map(|p| p.iter().sum::<f32>() / c as f32).collect(),
         }
     }
 

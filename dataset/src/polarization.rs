@@ -14,11 +14,7 @@ pub const POLARIZER_ANGLES_DEG: [u32; 4] = [0, 45, 90, 135];
 
 /// The row of the measurement model: `I(theta) = row . (S0, S1, S2)`.
 pub fn measurement_row(theta_rad: f64) -> [f64; 3] {
-    [
-        0.5,
-        0.5 * (2.0 * theta_rad).cos(),
-        0.5 * (2.0 * theta_rad).sin(),
-    ]
+    [0.5, 0.5 * (2.0 * theta_rad).cos(), 0.5 * (2.0 * theta_rad).sin()]
 }
 
 /// Intensity behind a linear polarizer at `theta_rad`.
@@ -93,9 +89,7 @@ pub const AOP_U16_FULL_SCALE: f64 = 65535.0;
 
 /// Encode an AoP in `[0, pi)` as a 16-bit count (NeRSP `input_azimuth_maps`).
 pub fn aop_to_u16(aop: f32) -> u16 {
-    (aop as f64 / std::f64::consts::PI * AOP_U16_FULL_SCALE)
-        .round()
-        .clamp(0.0, AOP_U16_FULL_SCALE) as u16
+    (aop as f64 / std::f64::consts::PI * AOP_U16_FULL_SCALE).round().clamp(0.0, AOP_U16_FULL_SCALE) as u16
 }
 
 /// Decode a 16-bit AoP count to radians; [`aop_to_u16`] gives the count back exactly.
@@ -110,8 +104,7 @@ pub fn diffuse_dop(theta: f32, eta: f32) -> f32 {
     let (s, c) = theta.sin_cos();
     let s2 = s * s;
     let a = (eta - 1.0 / eta).powi(2) * s2;
-    let b =
-        2.0 + 2.0 * eta * eta - (eta + 1.0 / eta).powi(2) * s2 + 4.0 * c * (eta * eta - s2).sqrt();
+    let b = 2.0 + 2.0 * eta * eta - (eta + 1.0 / eta).powi(2) * s2 + 4.0 * c * (eta * eta - s2).sqrt();
     a / b
 }
 

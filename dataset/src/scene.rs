@@ -17,7 +17,7 @@ pub enum Split {
 
 /// Stokes images `S0, S1, S2` of one view, linear radiance, in the image frame
 /// (see [`crate::polarization`]). All three have the same size and channel count (3 for RGB).
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Stokes {
     /// Total intensity.
     pub s0: Image<f32>,
@@ -33,16 +33,12 @@ impl Stokes {
         for (name, other) in [("S1", &self.s1), ("S2", &self.s2)] {
             self.s0.check_same_size(other, &format!("S0 and {name}"))?;
             if other.channels() != self.s0.channels() {
-                return Err(Error::invalid(format!(
-                    "S0 and {name} have different channel counts"
-                )));
+                return Err(Error::invalid(format!("S0 and {name} have different channel counts")));
             }
         }
         for (name, image) in [("S0", &self.s0), ("S1", &self.s1), ("S2", &self.s2)] {
             if let Some((x, y, c)) = image.first_non_finite() {
-                return Err(Error::invalid(format!(
-                    "{name} is not finite at pixel ({x}, {y}) channel {c}"
-                )));
+                return Err(Error::invalid(format!("{name} is not finite at pixel ({x}, {y}) channel {c}")));
             }
         }
         Ok(())
@@ -51,25 +47,14 @@ impl Stokes {
     /// AoP of the channel-mean Stokes vector, in `[0, pi)` (the NeRSP definition for RGB data).
     pub fn aop(&self) -> Image<f32> {
         let (s1, s2) = (self.s1.channel_mean(), self.s2.channel_mean());
-        let data = s1
-            .data()
-            .iter()
-            .zip(s2.data())
-            .map(|(&a, &b)| polarization::aop(a, b))
-            .collect();
+        let data = s1.data().iter().zip(s2.data()).map(|(&a, &b)| polarization::aop(a, b)).collect();
         Image::from_vec(s1.width(), s1.height(), 1, data).expect("same size")
     }
 
     /// DoP of the channel-mean Stokes vector.
     pub fn dop(&self) -> Image<f32> {
-        let (s0, s1, s2) = (
-            self.s0.channel_mean(),
-            self.s1.channel_mean(),
-            self.s2.channel_mean(),
-        );
-        let data = (0..s0.data().len())
-            .map(|i| polarization::dop(s0.data()[i], s1.data()[i], s2.data()[i]))
-            .collect();
+        let (s0, s1, s2) = (self.s0.channel_mean(), self.s1.channel_mean(), self.s2.channel_mean());
+        let data = (0..s0.data().len()).map(|i| polarization::dop(s0.data()[i], s1.data()[i], s2.data()[i])).collect();
         Image::from_vec(s0.width(), s0.height(), 1, data).expect("same size")
     }
 }
@@ -134,8 +119,7 @@ impl View {
     pub fn projection_matrix(&self) -> Matrix4<f64> {
         self.projection.unwrap_or_else(|| {
             let mut m = Matrix4::identity();
-            m.fixed_view_mut::<3, 4>(0, 0)
-                .copy_from(&self.camera.projection());
+            m.fixed_view_mut::<3, 4>(0, 0).copy_from(&self.camera.projection());
             m
         })
     }
@@ -246,22 +230,15 @@ impl Scene {
             view.validate()?;
         }
         if let Some(mesh) = &self.mesh {
-            mesh.validate()
-                .map_err(|e| Error::invalid(format!("ground-truth mesh: {e}")))?;
+            mesh.validate().map_err(|e| Error::invalid(format!("ground-truth mesh: {e}")))?;
         }
         if let Some(env) = &self.env_map {
             if let Some((x, y, c)) = env.first_non_finite() {
-                return Err(Error::invalid(format!(
-                    "environment map is not finite at ({x}, {y}) channel {c}"
-                )));
+                return Err(Error::invalid(format!("environment map is not finite at ({x}, {y}) channel {c}")));
             }
         }
-        if !self.normalization.iter().all(|v| v.is_finite())
-            || self.normalization.determinant().abs() < 1e-300
-        {
-            return Err(Error::invalid(
-                "normalization matrix is singular or not finite",
-            ));
+        if !self.normalization.iter().all(|v| v.is_finite()) || self.normalization.determinant().abs() < 1e-300 {
+            return Err(Error::invalid("normalization matrix is singular or not finite"));
         }
         Ok(())
     }

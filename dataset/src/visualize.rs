@@ -15,11 +15,7 @@ pub fn quantile(values: &[f32], q: f32) -> f32 {
 
 fn srgb_encode(linear: f32) -> u8 {
     let c = linear.clamp(0.0, 1.0);
-    let s = if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    };
+    let s = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
     (s * 255.0).round() as u8
 }
 
@@ -28,13 +24,7 @@ fn to_rgb(image: &Image<f32>, f: impl Fn(f32) -> u8) -> Image<u8> {
     let data = image
         .data()
         .chunks_exact(c)
-        .flat_map(|p| {
-            if c >= 3 {
-                [f(p[0]), f(p[1]), f(p[2])]
-            } else {
-                [f(p[0]); 3]
-            }
-        })
+        .flat_map(|p| if c >= 3 { [f(p[0]), f(p[1]), f(p[2])] } else { [f(p[0]); 3] })
         .collect();
     Image::from_vec(image.width(), image.height(), 3, data).expect("size kept")
 }
@@ -48,9 +38,7 @@ pub fn preview(linear: &Image<f32>) -> Image<u8> {
 
 /// A single-channel value as a grey ramp: `lo` black, `hi` white.
 pub fn gray_ramp(image: &Image<f32>, lo: f32, hi: f32) -> Image<u8> {
-    to_rgb(&image.channel(0), |v| {
-        ((v - lo) / (hi - lo) * 255.0).clamp(0.0, 255.0).round() as u8
-    })
+    to_rgb(&image.channel(0), |v| ((v - lo) / (hi - lo) * 255.0).clamp(0.0, 255.0).round() as u8)
 }
 
 /// HSV (hue in turns, saturation and value in `[0, 1]`) to 8-bit RGB.
@@ -65,12 +53,7 @@ pub fn hsv_to_rgb(hue: f32, saturation: f32, value: f32) -> [u8; 3] {
 
 /// AoP as a hue wheel (0 red, pi/3 green, 2pi/3 blue, back to red at pi), its brightness the
 /// DoP relative to `dop_full` (brightest at or above it); pixels outside `mask` are black.
-pub fn aop_picture(
-    aop: &Image<f32>,
-    dop: &Image<f32>,
-    dop_full: f32,
-    mask: Option<&Image<u8>>,
-) -> Image<u8> {
+pub fn aop_picture(aop: &Image<f32>, dop: &Image<f32>, dop_full: f32, mask: Option<&Image<u8>>) -> Image<u8> {
     let mut out = Image::new(aop.width(), aop.height(), 3);
     for (i, px) in out.data_mut().chunks_exact_mut(3).enumerate() {
         if mask.is_some_and(|m| m.data()[i * m.channels()] == 0) {
@@ -90,9 +73,7 @@ pub fn downsample(image: &Image<u8>, factor: usize) -> Image<u8> {
     for y in 0..h {
         for x in 0..w {
             for ch in 0..c {
-                let sum: u32 = (0..f * f)
-                    .map(|k| image.pixel(x * f + k % f, y * f + k / f)[ch] as u32)
-                    .sum();
+                let sum: u32 = (0..f * f).map(|k| image.pixel(x * f + k % f, y * f + k / f)[ch] as u32).sum();
                 out.pixel_mut(x, y)[ch] = ((sum + (f * f / 2) as u32) / (f * f) as u32) as u8;
             }
         }
@@ -109,18 +90,11 @@ pub fn contact_sheet(tiles: &[Image<u8>], columns: usize) -> Image<u8> {
     let mut sheet = Image::new(columns * (w + GAP) + GAP, rows * (h + GAP) + GAP, 3);
     sheet.data_mut().fill(32);
     for (k, tile) in tiles.iter().enumerate() {
-        let (x0, y0) = (
-            GAP + (k % columns) * (w + GAP),
-            GAP + (k / columns) * (h + GAP),
-        );
+        let (x0, y0) = (GAP + (k % columns) * (w + GAP), GAP + (k / columns) * (h + GAP));
         for y in 0..h.min(tile.height()) {
             for x in 0..w.min(tile.width()) {
                 let p = tile.pixel(x, y);
-                let rgb = if p.len() >= 3 {
-                    [p[0], p[1], p[2]]
-                } else {
-                    [p[0]; 3]
-                };
+                let rgb = if p.len() >= 3 { [p[0], p[1], p[2]] } else { [p[0]; 3] };
                 sheet.pixel_mut(x0 + x, y0 + y).copy_from_slice(&rgb);
             }
         }

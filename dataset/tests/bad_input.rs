@@ -10,11 +10,7 @@ fn spot() -> PathBuf {
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/fixtures"));
     let dir = root.join("spot_nersp");
-    assert!(
-        dir.is_dir(),
-        "fixture {} missing; set RMVP_FIXTURES",
-        dir.display()
-    );
+    assert!(dir.is_dir(), "fixture {} missing; set RMVP_FIXTURES", dir.display());
     dir
 }
 
@@ -49,11 +45,7 @@ fn truncate(from: &Path, to: &Path) {
 
 fn assert_error_names(err: impl std::fmt::Display, file: &Path, words: &[&str]) {
     let message = err.to_string();
-    assert!(
-        message.contains(&file.display().to_string()),
-        "{message:?} does not name {}",
-        file.display()
-    );
+    assert!(message.contains(&file.display().to_string()), "{message:?} does not name {}", file.display());
     for w in words {
         assert!(message.contains(w), "{message:?} does not say {w:?}");
     }
@@ -87,30 +79,19 @@ fn truncated_files_are_reported_with_their_name() {
 #[test]
 fn ascii_and_binary_ply_round_trip_and_bad_indices_are_caught() {
     let mesh = Mesh::read(&spot().join("gt/mesh.ply")).unwrap();
-    assert!(
-        mesh.colors().is_some() && mesh.property("roughness_0").is_some() && mesh.normals.is_some()
-    );
+    assert!(mesh.colors().is_some() && mesh.property("roughness_0").is_some() && mesh.normals.is_some());
     let tmp = tempfile::tempdir().unwrap();
     let ascii = tmp.path().join("ascii.ply");
-    rmvp_dataset::mesh::ply::write_ply(&ascii, &mesh, rmvp_dataset::mesh::ply::PlyEncoding::Ascii)
-        .unwrap();
-    assert!(std::fs::read_to_string(&ascii)
-        .unwrap()
-        .starts_with("ply\nformat ascii"));
+    rmvp_dataset::mesh::ply::write_ply(&ascii, &mesh, rmvp_dataset::mesh::ply::PlyEncoding::Ascii).unwrap();
+    assert!(std::fs::read_to_string(&ascii).unwrap().starts_with("ply\nformat ascii"));
     assert_eq!(Mesh::read(&ascii).unwrap(), mesh);
     let obj = tmp.path().join("m.obj");
     mesh.write(&obj).unwrap();
     let back = Mesh::read(&obj).unwrap();
-    assert_eq!(
-        (back.positions.len(), back.faces.len()),
-        (mesh.positions.len(), mesh.faces.len())
-    );
+    assert_eq!((back.positions.len(), back.faces.len()), (mesh.positions.len(), mesh.faces.len()));
     let mut broken = mesh.clone();
     broken.faces[7] = [0, 1, mesh.positions.len() as u32];
-    let err = broken
-        .write(&tmp.path().join("b.ply"))
-        .unwrap_err()
-        .to_string();
+    let err = broken.write(&tmp.path().join("b.ply")).unwrap_err().to_string();
     assert!(err.contains("face 7") && err.contains("b.ply"), "{err}");
 }
 
@@ -129,10 +110,7 @@ fn a_mask_of_the_wrong_size_is_reported() {
     png::write_png_u8(&mask, &Image::new(64, 64, 1)).unwrap();
     std::fs::remove_file(dir.join("gt/mask/002.png")).unwrap();
     let err = read_scene(&dir).unwrap_err().to_string();
-    assert!(
-        err.contains("view 002") && err.contains("mask is 64x64") && err.contains("128x128"),
-        "{err}"
-    );
+    assert!(err.contains("view 002") && err.contains("mask is 64x64") && err.contains("128x128"), "{err}");
 }
 
 #[test]
@@ -143,10 +121,7 @@ fn nan_in_stokes_is_reported_with_its_pixel() {
     a.data[(5 * 128 + 9) * 3 + 1] = f32::NAN;
     npy::write_npy(&path, &a).unwrap();
     let err = read_scene(&dir).unwrap_err().to_string();
-    assert!(
-        err.contains("S2 is not finite at pixel (9, 5) channel 1") && err.contains("view 001"),
-        "{err}"
-    );
+    assert!(err.contains("S2 is not finite at pixel (9, 5) channel 1") && err.contains("view 001"), "{err}");
 }
 
 #[test]
@@ -154,11 +129,6 @@ fn a_folder_that_is_no_scene_is_reported() {
     let tmp = tempfile::tempdir().unwrap();
     let err = read_scene(tmp.path()).unwrap_err().to_string();
     assert!(err.contains("not a scene"), "{err}");
-    let err = read_scene(&tmp.path().join("nope"))
-        .unwrap_err()
-        .to_string();
-    assert!(
-        err.contains("nope") && err.contains("no such scene folder"),
-        "{err}"
-    );
+    let err = read_scene(&tmp.path().join("nope")).unwrap_err().to_string();
+    assert!(err.contains("nope") && err.contains("no such scene folder"), "{err}");
 }

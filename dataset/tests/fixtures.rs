@@ -14,28 +14,18 @@ fn fixtures() -> Vec<PathBuf> {
         .map(PathBuf::from)
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/fixtures"));
     let mut scenes: Vec<PathBuf> = std::fs::read_dir(&root)
-        .unwrap_or_else(|e| {
-            panic!(
-                "fixtures not found at {} ({e}); set RMVP_FIXTURES",
-                root.display()
-            )
-        })
+        .unwrap_or_else(|e| panic!("fixtures not found at {} ({e}); set RMVP_FIXTURES", root.display()))
         .map(|e| e.unwrap().path())
         .filter(|p| p.join(nersp::CAMERAS).is_file())
         .collect();
     scenes.sort();
-    assert!(
-        scenes.len() >= 2,
-        "expected the spot and bunny fixtures in {}",
-        root.display()
-    );
+    assert!(scenes.len() >= 2, "expected the spot and bunny fixtures in {}", root.display());
     scenes
 }
 
 fn png_scale(dir: &Path) -> f64 {
     let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("gt/cameras.json")).unwrap())
-            .unwrap();
+        serde_json::from_str(&std::fs::read_to_string(dir.join("gt/cameras.json")).unwrap()).unwrap();
     json["png_scale"].as_f64().unwrap()
 }
 
@@ -44,8 +34,7 @@ fn aop_from_stokes_matches_the_azimuth_maps_to_the_count() {
     for dir in fixtures() {
         let scene = read_scene(&dir).unwrap();
         for (i, view) in scene.train_views().enumerate() {
-            let stored =
-                png::read_png_u16(&dir.join(format!("input_azimuth_maps/{i:04}.png"))).unwrap();
+            let stored = png::read_png_u16(&dir.join(format!("input_azimuth_maps/{i:04}.png"))).unwrap();
             let ours = view.stokes.as_ref().unwrap().aop();
             let (mut exact, mut worst) = (0usize, 0i32);
             for (k, &a) in ours.data().iter().enumerate() {
@@ -76,31 +65,20 @@ fn stokes_from_polarizer_images_match_the_stored_stokes() {
             let (mut checked, mut worst) = (0, 0.0f32);
             for k in 0..s.s0.data().len() {
                 let counts = pol.images.each_ref().map(|img| img.data()[k]);
-                if counts.iter().any(|&c| c == u16::MAX) {
+                if counts.contains(&u16::MAX) {
                     continue; // clipped: the PNG cannot hold the intensity
                 }
                 let i = counts.map(|c| c as f32 / 65535.0 / scale);
                 let ours = stokes_from_four(i);
-                for (o, t) in ours
-                    .iter()
-                    .zip([s.s0.data()[k], s.s1.data()[k], s.s2.data()[k]])
-                {
+                for (o, t) in ours.iter().zip([s.s0.data()[k], s.s1.data()[k], s.s2.data()[k]]) {
                     worst = worst.max((o - t).abs());
                 }
                 checked += 1;
             }
             // Each count is within half a count of the truth: S0 and S1, S2 within one count.
             let bound = 1.0 / 65535.0 / scale + 1e-6;
-            assert!(
-                checked > s.s0.data().len() * 9 / 10,
-                "too many clipped pixels"
-            );
-            assert!(
-                worst <= bound,
-                "{}: view {}: worst Stokes error {worst:e} > {bound:e}",
-                dir.display(),
-                view.name
-            );
+            assert!(checked > s.s0.data().len() * 9 / 10, "too many clipped pixels");
+            assert!(worst <= bound, "{}: view {}: worst Stokes error {worst:e} > {bound:e}", dir.display(), view.name);
         }
     }
 }
@@ -120,21 +98,9 @@ fn decomposed_world_mats_match_the_reference_cameras() {
         for (p, view) in world_mats(&dir).iter().zip(scene.train_views()) {
             let camera = Camera::from_projection(p, view.camera.width, view.camera.height).unwrap();
             let reference = &view.camera;
-            assert!(
-                (camera.k - reference.k).abs().max() < 1e-9 * reference.k.abs().max(),
-                "K of {}",
-                view.name
-            );
-            assert!(
-                (camera.r - reference.r).abs().max() < 1e-12,
-                "R of {}",
-                view.name
-            );
-            assert!(
-                (camera.t - reference.t).abs().max() < 1e-12,
-                "t of {}",
-                view.name
-            );
+            assert!((camera.k - reference.k).abs().max() < 1e-9 * reference.k.abs().max(), "K of {}", view.name);
+            assert!((camera.r - reference.r).abs().max() < 1e-12, "R of {}", view.name);
+            assert!((camera.t - reference.t).abs().max() < 1e-12, "t of {}", view.name);
             assert!((camera.r.determinant() - 1.0).abs() < 1e-12);
         }
     }
@@ -164,9 +130,7 @@ fn ground_truth_mesh_projects_into_the_masks() {
                 .positions
                 .iter()
                 .filter(|p| {
-                    let q = camera
-                        .project(&Point3::new(p[0] as f64, p[1] as f64, p[2] as f64))
-                        .unwrap();
+                    let q = camera.project(&Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)).unwrap();
                     inside_dilated(q.x.floor() as i64, q.y.floor() as i64)
                 })
                 .count();
@@ -187,72 +151,33 @@ fn assert_same_content(a: &Path, b: &Path) {
     let ext = a.extension().unwrap().to_str().unwrap();
     match ext {
         "npy" => {
-            let (x, y) = (
-                npy::read_npy::<f32>(a).unwrap(),
-                npy::read_npy::<f32>(b).unwrap(),
-            );
+            let (x, y) = (npy::read_npy::<f32>(a).unwrap(), npy::read_npy::<f32>(b).unwrap());
             assert_eq!(x.shape, y.shape, "{}", a.display());
-            assert!(
-                x.data
-                    .iter()
-                    .zip(&y.data)
-                    .all(|(p, q)| p.to_bits() == q.to_bits()),
-                "{}",
-                a.display()
-            );
+            assert!(x.data.iter().zip(&y.data).all(|(p, q)| p.to_bits() == q.to_bits()), "{}", a.display());
         }
         "npz" => {
-            let (x, y) = (
-                npy::read_npz::<f64>(a).unwrap(),
-                npy::read_npz::<f64>(b).unwrap(),
-            );
+            let (x, y) = (npy::read_npz::<f64>(a).unwrap(), npy::read_npz::<f64>(b).unwrap());
             assert_eq!(x.len(), y.len());
             for ((nx, ax), (ny, ay)) in x.iter().zip(&y) {
                 assert_eq!(nx, ny);
-                assert!(
-                    ax.data
-                        .iter()
-                        .zip(&ay.data)
-                        .all(|(p, q)| p.to_bits() == q.to_bits()),
-                    "{} {nx}",
-                    a.display()
-                );
+                assert!(ax.data.iter().zip(&ay.data).all(|(p, q)| p.to_bits() == q.to_bits()), "{} {nx}", a.display());
             }
         }
-        "png" => assert_eq!(
-            png::read_png(a).unwrap(),
-            png::read_png(b).unwrap(),
-            "{}",
-            a.display()
-        ),
+        "png" => assert_eq!(png::read_png(a).unwrap(), png::read_png(b).unwrap(), "{}", a.display()),
         "exr" => {
-            let (x, y) = (
-                exr::read_exr_channels(a).unwrap(),
-                exr::read_exr_channels(b).unwrap(),
-            );
+            let (x, y) = (exr::read_exr_channels(a).unwrap(), exr::read_exr_channels(b).unwrap());
             assert_eq!((x.0, x.1), (y.0, y.1));
             for ((nx, cx), (ny, cy)) in x.2.iter().zip(&y.2) {
                 assert_eq!(nx, ny);
-                assert!(
-                    cx.iter().zip(cy).all(|(p, q)| p.to_bits() == q.to_bits()),
-                    "{} {nx}",
-                    a.display()
-                );
+                assert!(cx.iter().zip(cy).all(|(p, q)| p.to_bits() == q.to_bits()), "{} {nx}", a.display());
             }
         }
         "json" => {
-            let read = |p: &Path| {
-                serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(p).unwrap())
-                    .unwrap()
-            };
+            let read =
+                |p: &Path| serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(p).unwrap()).unwrap();
             assert_eq!(read(a), read(b), "{}", a.display());
         }
-        "ply" => assert_eq!(
-            Mesh::read(a).unwrap(),
-            Mesh::read(b).unwrap(),
-            "{}",
-            a.display()
-        ),
+        "ply" => assert_eq!(Mesh::read(a).unwrap(), Mesh::read(b).unwrap(), "{}", a.display()),
         other => panic!("unexpected file type {other} in {}", a.display()),
     }
 }
@@ -280,28 +205,15 @@ fn nersp_layout_round_trips_through_ours_bit_exactly() {
         write_scene(&original, &ours, Layout::Canonical).unwrap();
         assert_eq!(Layout::detect(&ours).unwrap(), Layout::Canonical);
         let via_ours = read_scene(&ours).unwrap();
-        assert_eq!(
-            via_ours,
-            original,
-            "{}: scene changed through our layout",
-            dir.display()
-        );
+        assert_eq!(via_ours, original, "{}: scene changed through our layout", dir.display());
         write_scene(&via_ours, &back, Layout::Nersp).unwrap();
         for file in files_below(&dir) {
             let relative = file.strip_prefix(&dir).unwrap();
             let copy = back.join(relative);
-            assert!(
-                copy.is_file(),
-                "{} was not written back",
-                relative.display()
-            );
+            assert!(copy.is_file(), "{} was not written back", relative.display());
             assert_same_content(&file, &copy);
         }
-        assert_eq!(
-            files_below(&back).len(),
-            files_below(&dir).len(),
-            "extra files written"
-        );
+        assert_eq!(files_below(&back).len(), files_below(&dir).len(), "extra files written");
         let again: Scene = read_scene(&back).unwrap();
         assert_eq!(again, original);
         assert!(canonical::read(&ours).is_ok());

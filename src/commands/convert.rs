@@ -24,10 +24,7 @@ pub fn run(args: Args) -> Result<()> {
         other => bail!("unknown layout {other:?}: use nersp or rmvp"),
     };
     if args.destination.exists() && std::fs::read_dir(&args.destination)?.next().is_some() {
-        bail!(
-            "{}: exists and is not empty; choose a new folder",
-            args.destination.display()
-        );
+        bail!("{}: exists and is not empty; choose a new folder", args.destination.display());
     }
     let bar = super::progress(2, "convert");
     bar.set_message(format!("reading {}", args.source.display()));

@@ -34,23 +34,12 @@ const ETA: f32 = 1.5;
 
 /// The example's true Stokes images (RGB) and object mask at sub-mosaic resolution.
 fn example_scene() -> (Stokes, Image<u8>) {
-    let (cx, cy, radius) = (
-        WIDTH as f32 / 2.0,
-        HEIGHT as f32 / 2.0,
-        0.42 * HEIGHT as f32,
-    );
-    let mut s = [
-        Image::new(WIDTH, HEIGHT, 3),
-        Image::new(WIDTH, HEIGHT, 3),
-        Image::new(WIDTH, HEIGHT, 3),
-    ];
+    let (cx, cy, radius) = (WIDTH as f32 / 2.0, HEIGHT as f32 / 2.0, 0.42 * HEIGHT as f32);
+    let mut s = [Image::new(WIDTH, HEIGHT, 3), Image::new(WIDTH, HEIGHT, 3), Image::new(WIDTH, HEIGHT, 3)];
     let mut mask = Image::new(WIDTH, HEIGHT, 1);
     for y in 0..HEIGHT {
         for x in 0..WIDTH {
-            let (dx, dy) = (
-                (x as f32 + 0.5 - cx) / radius,
-                (y as f32 + 0.5 - cy) / radius,
-            );
+            let (dx, dy) = ((x as f32 + 0.5 - cx) / radius, (y as f32 + 0.5 - cy) / radius);
             let r2 = dx * dx + dy * dy;
             let (s0, dop, azimuth) = if r2 < 1.0 {
                 mask.pixel_mut(x, y)[0] = 255;
@@ -64,11 +53,10 @@ fn example_scene() -> (Stokes, Image<u8>) {
             } else {
                 ([0.12 + 0.1 * y as f32 / HEIGHT as f32; 3], 0.0, 0.0)
             };
-            for c in 0..3 {
-                s[0].pixel_mut(x, y)[c] = s0[c];
-                s[1].pixel_mut(x, y)[c] = s0[c] * dop * (2.0 * azimuth).cos();
-                s[2].pixel_mut(x, y)[c] = s0[c] * dop * (2.0 * azimuth).sin();
-            }
+            let linear = [(2.0 * azimuth).cos(), (2.0 * azimuth).sin()];
+            s[0].pixel_mut(x, y).copy_from_slice(&s0);
+            s[1].pixel_mut(x, y).copy_from_slice(&s0.map(|v| v * dop * linear[0]));
+            s[2].pixel_mut(x, y).copy_from_slice(&s0.map(|v| v * dop * linear[1]));
         }
     }
     let [s0, s1, s2] = s;
@@ -82,12 +70,7 @@ fn polarizer_counts(stokes: &Stokes) -> [Image<u16>; 4] {
         let theta = (deg as f32).to_radians();
         let data = (0..stokes.s0.data().len())
             .map(|k| {
-                let i = intensity(
-                    stokes.s0.data()[k],
-                    stokes.s1.data()[k],
-                    stokes.s2.data()[k],
-                    theta,
-                );
+                let i = intensity(stokes.s0.data()[k], stokes.s1.data()[k], stokes.s2.data()[k], theta);
                 (i.clamp(0.0, 1.0) * full).round() as u16
             })
             .collect();
@@ -107,11 +90,7 @@ pub fn run(args: Args) -> Result<()> {
     let bar = super::progress(4, "demo");
     bar.set_message("synthesising a 2448x2048 BayerRGPolarized12p frame");
     let (truth, mask) = example_scene();
-    let raw = compose(
-        SensorLayout::ColorPolarized,
-        BITS,
-        &polarizer_counts(&truth),
-    );
+    let raw = compose(SensorLayout::ColorPolarized, BITS, &polarizer_counts(&truth));
     let format = PixelFormat::BAYER_RG_POLARIZED_12P;
     let raw_path = out.join("frame.raw");
     raw.write(&raw_path, format)?;
@@ -140,7 +119,7 @@ pub fn run(args: Args) -> Result<()> {
         }
         for c in 0..3 {
             let t = truth.s0.data()[3 * k + c];
-            s0_errors.push((processed.stokes.s0.data()[3 * k + c] - t).abs() / t);
+            s0_errors.push((processed.estimate.stokes.s0.data()[3 * k + c] - t).abs() / t);
         }
     }
     let dop_errors: Vec<f32> = (0..WIDTH * HEIGHT)
@@ -152,7 +131,7 @@ pub fn run(args: Args) -> Result<()> {
     bar.set_message("pictures and report");
     let tiles = [
         preview(&truth.s0),
-        preview(&processed.stokes.s0),
+        preview(&processed.estimate.stokes.s0),
         aop_picture(&truth_aop, &truth_dop),
         aop_picture(&processed.aop, &processed.dop),
         gray_ramp(&processed.dop, 0.0, 0.5),
@@ -171,42 +150,27 @@ pub fn run(args: Args) -> Result<()> {
         "contact_sheet_tiles": ["true S0", "recovered S0", "true AoP (hue) x DoP", "recovered AoP x DoP", "recovered DoP 0..0.5", "AoP error 0..5 deg"],
     });
     let report_path = out.join("report.json");
-    write_bytes_atomically(
-        &report_path,
-        serde_json::to_string_pretty(&report)?.as_bytes(),
-    )?;
+    write_bytes_atomically(&report_path, serde_json::to_string_pretty(&report)?.as_bytes())?;
     bar.inc(1);
     bar.finish_with_message("done");
 
-    println!(
-        "built-in example: diffuse dielectric sphere (eta {ETA}), one 2448x2048 {} frame",
-        format.name()
-    );
+    println!("built-in example: diffuse dielectric sphere (eta {ETA}), one 2448x2048 {} frame", format.name());
     println!(
         "  AoP error  median {:.3} deg, 95% {:.3} deg over {} pixels with DoP > 0.05",
         quantile(&aop_errors, 0.5),
         quantile(&aop_errors, 0.95),
         aop_errors.len()
     );
-    println!(
-        "  DoP error  median {:.4}, 95% {:.4}",
-        quantile(&dop_errors, 0.5),
-        quantile(&dop_errors, 0.95)
-    );
+    println!("  DoP error  median {:.4}, 95% {:.4}", quantile(&dop_errors, 0.5), quantile(&dop_errors, 0.95));
     println!(
         "  S0 error   median {:.3}%, 95% {:.3}%",
         100.0 * quantile(&s0_errors, 0.5),
         100.0 * quantile(&s0_errors, 0.95)
     );
+    println!("wrote {} and {} more files in {}:", sheet_path.display(), files.len() + 2, out.display());
+    println!("  contact_sheet.png: true S0 | recovered S0 / true AoP | recovered AoP / DoP | AoP error");
     println!(
-        "wrote {} and {} more files in {}:",
-        sheet_path.display(),
-        files.len() + 2,
-        out.display()
+        "  report.json, frame.raw, frame_{{000,045,090,135}}.png, frame_stokes.exr, frame_aop.png, frame_dop.png, ..."
     );
-    println!(
-        "  contact_sheet.png: true S0 | recovered S0 / true AoP | recovered AoP / DoP | AoP error"
-    );
-    println!("  report.json, frame.raw, frame_{{000,045,090,135}}.png, frame_stokes.exr, frame_aop.png, frame_dop.png, ...");
     Ok(())
 }

@@ -52,28 +52,16 @@ pub fn run(args: Args) -> Result<()> {
         method: DemosaicMethod::from_name(&args.method)?,
         saturation_aware: args.saturation_aware,
         dark,
-        color_correction: args
-            .ccm
-            .map(|m| [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]]),
+        color_correction: args.ccm.map(|m| [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]]),
     };
     let bar = super::progress(args.raw.len() as u64, "demosaic");
     for path in &args.raw {
         bar.set_message(path.display().to_string());
         let frame = read(path)?;
-        let processed = processor
-            .process(&frame)
-            .with_context(|| format!("processing {}", path.display()))?;
-        let stem = path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "frame".into());
+        let processed = processor.process(&frame).with_context(|| format!("processing {}", path.display()))?;
+        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "frame".into());
         processed.write(&args.output, &stem)?;
-        let saturated = processed
-            .saturated
-            .data()
-            .iter()
-            .filter(|&&n| n > 0)
-            .count();
+        let saturated = processed.estimate.saturated.data().iter().filter(|&&n| n > 0).count();
         bar.println(format!(
             "{}: {}x{} x4, {} pixels with saturated angles, median DoP {:.3}",
             path.display(),

@@ -37,9 +37,8 @@ fn summary(scene: &Scene, layout: Layout) -> Value {
         .iter()
         .map(|v| {
             let c = &v.camera;
-            let mask_fraction = v.mask.as_ref().map(|m| {
-                m.data().iter().filter(|&&x| x > 127).count() as f64 / m.data().len() as f64
-            });
+            let mask_fraction =
+                v.mask.as_ref().map(|m| m.data().iter().filter(|&&x| x > 127).count() as f64 / m.data().len() as f64);
             json!({
                 "name": v.name,
                 "split": v.split,
@@ -51,11 +50,11 @@ fn summary(scene: &Scene, layout: Layout) -> Value {
             })
         })
         .collect();
-    let mesh = scene.mesh.as_ref().map(|m| json!({"vertices": m.positions.len(), "triangles": m.faces.len(), "bounds": m.bounds()}));
-    let env = scene
-        .env_map
+    let mesh = scene
+        .mesh
         .as_ref()
-        .map(|e| json!({"size": [e.width(), e.height()]}));
+        .map(|m| json!({"vertices": m.positions.len(), "triangles": m.faces.len(), "bounds": m.bounds()}));
+    let env = scene.env_map.as_ref().map(|e| json!({"size": [e.width(), e.height()]}));
     json!({
         "layout": layout.name(),
         "views": views,
@@ -77,11 +76,7 @@ pub fn run(args: Args) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&s)?);
         return Ok(());
     }
-    println!(
-        "scene   {} ({} layout), valid",
-        args.scene.display(),
-        layout.name()
-    );
+    println!("scene   {} ({} layout), valid", args.scene.display(), layout.name());
     println!(
         "views   {} ({} train, {} eval)",
         scene.views.len(),
@@ -106,11 +101,7 @@ pub fn run(args: Args) -> Result<()> {
         );
     }
     if let Some(m) = &scene.mesh {
-        println!(
-            "mesh    {} vertices, {} triangles",
-            m.positions.len(),
-            m.faces.len()
-        );
+        println!("mesh    {} vertices, {} triangles", m.positions.len(), m.faces.len());
     }
     if let Some(e) = &scene.env_map {
         println!("env map {}x{}", e.width(), e.height());

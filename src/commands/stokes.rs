@@ -23,9 +23,7 @@ pub struct Args {
 
 /// A linear image: PNG samples divided by their full scale, EXR `R G B` or its only channel.
 fn read_linear(path: &Path) -> Result<Image<f32>> {
-    let is_exr = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+    let is_exr = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
     Ok(if is_exr {
         let (_, _, channels) = exr::read_exr_channels(path)?;
         let names: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
@@ -34,10 +32,7 @@ fn read_linear(path: &Path) -> Result<Image<f32>> {
         } else if names.len() == 1 {
             exr::read_exr(path, &[names[0]])?
         } else {
-            bail!(
-                "{}: expected channels R, G, B or a single channel, found {names:?}",
-                path.display()
-            );
+            bail!("{}: expected channels R, G, B or a single channel, found {names:?}", path.display());
         }
     } else {
         match png::read_png(path)? {
@@ -49,11 +44,7 @@ fn read_linear(path: &Path) -> Result<Image<f32>> {
 
 /// Run the command.
 pub fn run(args: Args) -> Result<()> {
-    let images = args
-        .images
-        .iter()
-        .map(|p| read_linear(p))
-        .collect::<Result<Vec<_>>>()?;
+    let images = args.images.iter().map(|p| read_linear(p)).collect::<Result<Vec<_>>>()?;
     for (image, path) in images.iter().zip(&args.images).skip(1) {
         if image.size() != images[0].size() || image.channels() != images[0].channels() {
             bail!(
@@ -70,11 +61,7 @@ pub fn run(args: Args) -> Result<()> {
         }
     }
     let (w, h, c) = (images[0].width(), images[0].height(), images[0].channels());
-    let mut s = [
-        Image::new(w, h, c),
-        Image::new(w, h, c),
-        Image::new(w, h, c),
-    ];
+    let mut s = [Image::new(w, h, c), Image::new(w, h, c), Image::new(w, h, c)];
     for k in 0..w * h * c {
         let v = stokes_from_four([0, 1, 2, 3].map(|a| images[a].data()[k]));
         for (component, value) in s.iter_mut().zip(v) {

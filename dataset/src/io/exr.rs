@@ -3,14 +3,17 @@
 use super::atomic::write_atomically;
 use crate::{Error, Image, Result};
 use exr::prelude::{
-    read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrFile, Layer, LayerAttributes,
-    ReadChannels, ReadLayers, WritableImage,
+    read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrFile, Layer, LayerAttributes, ReadChannels,
+    ReadLayers, WritableImage,
 };
 use std::path::Path;
 
+/// Every channel of an EXR layer as `(name, samples)`, with the layer's width and height.
+pub type ExrChannels = (usize, usize, Vec<(String, Vec<f32>)>);
+
 /// Read the first layer of an EXR file: its size and every channel as `(name, samples)`, in the
 /// file's (alphabetical) channel order. Half and integer samples are converted to `f32`.
-pub fn read_exr_channels(path: &Path) -> Result<(usize, usize, Vec<(String, Vec<f32>)>)> {
+pub fn read_exr_channels(path: &Path) -> Result<ExrChannels> {
     let file = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -40,13 +43,10 @@ pub fn read_exr(path: &Path, names: &[&str]) -> Result<Image<f32>> {
     let (w, h, mut channels) = read_exr_channels(path)?;
     let mut planes = Vec::with_capacity(names.len());
     for name in names {
-        let i = channels
-            .iter()
-            .position(|(n, _)| n == name)
-            .ok_or_else(|| {
-                let found: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
-                Error::format(path, format!("no channel {name:?} (channels: {found:?})"))
-            })?;
+        let i = channels.iter().position(|(n, _)| n == name).ok_or_else(|| {
+            let found: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
+            Error::format(path, format!("no channel {name:?} (channels: {found:?})"))
+        })?;
         planes.push(std::mem::take(&mut channels[i].1));
     }
     let mut data = Vec::with_capacity(w * h * names.len());
@@ -61,11 +61,7 @@ pub fn write_exr(path: &Path, image: &Image<f32>, names: &[&str]) -> Result<()> 
     if names.len() != image.channels() {
         return Err(Error::format(
             path,
-            format!(
-                "{} channel names for a {}-channel image",
-                names.len(),
-                image.channels()
-            ),
+            format!("{} channel names for a {}-channel image", names.len(), image.channels()),
         ));
     }
     let list = names
@@ -80,9 +76,5 @@ pub fn write_exr(path: &Path, image: &Image<f32>, names: &[&str]) -> Result<()> 
         AnyChannels::sort(list),
     );
     let file = ExrFile::from_layer(layer);
-    write_atomically(path, |out| {
-        file.write()
-            .to_buffered(out)
-            .map_err(|e| std::io::Error::other(e.to_string()))
-    })
+    write_atomically(path, |out| file.write().to_buffered(out).map_err(|e| std::io::Error::other(e.to_string())))
 }

@@ -34,53 +34,24 @@ impl Element for f64 {
 }
 
 fn read_array<T: Element, R: Read>(reader: R, path: &Path) -> Result<Array<T>> {
-    let npy =
-        NpyFile::new(reader).map_err(|e| Error::format(path, format!("bad NPY header: {e}")))?;
+    let npy = NpyFile::new(reader).map_err(|e| Error::format(path, format!("bad NPY header: {e}")))?;
     if npy.order() != npyz::Order::C {
-        return Err(Error::format(
-            path,
-            "Fortran-ordered arrays are not supported",
-        ));
+        return Err(Error::format(path, "Fortran-ordered arrays are not supported"));
     }
     let shape: Vec<usize> = npy.shape().iter().map(|&n| n as usize).collect();
     let expected: usize = shape.iter().product();
     let descr = npy.dtype().descr().trim_matches('\'').to_string();
-    let truncated = |e: std::io::Error| {
-        Error::format(
-            path,
-            format!("cannot read {expected} elements of shape {shape:?}: {e}"),
-        )
-    };
+    let truncated =
+        |e: std::io::Error| Error::format(path, format!("cannot read {expected} elements of shape {shape:?}: {e}"));
     let data: Vec<T> = match descr.as_str() {
         "<f4" | ">f4" if std::mem::size_of::<T>() == 4 => npy.into_vec::<T>().map_err(truncated)?,
         "<f8" | ">f8" if std::mem::size_of::<T>() == 8 => npy.into_vec::<T>().map_err(truncated)?,
-        "<f4" | ">f4" => npy
-            .into_vec::<f32>()
-            .map_err(truncated)?
-            .into_iter()
-            .map(|v| T::from_f64(v as f64))
-            .collect(),
-        "<f8" | ">f8" => npy
-            .into_vec::<f64>()
-            .map_err(truncated)?
-            .into_iter()
-            .map(T::from_f64)
-            .collect(),
-        other => {
-            return Err(Error::format(
-                path,
-                format!("expected a float array, found dtype {other}"),
-            ))
-        }
+        "<f4" | ">f4" => npy.into_vec::<f32>().map_err(truncated)?.into_iter().map(|v| T::from_f64(v as f64)).collect(),
+        "<f8" | ">f8" => npy.into_vec::<f64>().map_err(truncated)?.into_iter().map(T::from_f64).collect(),
+        other => return Err(Error::format(path, format!("expected a float array, found dtype {other}"))),
     };
     if data.len() != expected {
-        return Err(Error::format(
-            path,
-            format!(
-                "shape {shape:?} needs {expected} elements, file has {}",
-                data.len()
-            ),
-        ));
+        return Err(Error::format(path, format!("shape {shape:?} needs {expected} elements, file has {}", data.len())));
     }
     Ok(Array { shape, data })
 }
@@ -93,11 +64,7 @@ pub fn read_npy<T: Element>(path: &Path) -> Result<Array<T>> {
 
 fn write_array<T: Element, W: Write>(out: W, array: &Array<T>) -> std::io::Result<()> {
     let shape: Vec<u64> = array.shape.iter().map(|&n| n as u64).collect();
-    let mut writer = npyz::WriteOptions::new()
-        .default_dtype()
-        .shape(&shape)
-        .writer(out)
-        .begin_nd()?;
+    let mut writer = npyz::WriteOptions::new().default_dtype().shape(&shape).writer(out).begin_nd()?;
     writer.extend(array.data.iter().copied())?;
     writer.finish()
 }
@@ -105,14 +72,7 @@ fn write_array<T: Element, W: Write>(out: W, array: &Array<T>) -> std::io::Resul
 fn check_shape<T>(path: &Path, array: &Array<T>) -> Result<()> {
     let n: usize = array.shape.iter().product();
     if n != array.data.len() {
-        return Err(Error::format(
-            path,
-            format!(
-                "shape {:?} does not fit {} elements",
-                array.shape,
-                array.data.len()
-            ),
-        ));
+        return Err(Error::format(path, format!("shape {:?} does not fit {} elements", array.shape, array.data.len())));
     }
     Ok(())
 }
@@ -129,29 +89,18 @@ pub fn read_npz<T: Element>(path: &Path) -> Result<Vec<(String, Array<T>)>> {
     read_npz_from(BufReader::new(file), path)
 }
 
-fn read_npz_from<T: Element, R: Read + Seek>(
-    reader: R,
-    path: &Path,
-) -> Result<Vec<(String, Array<T>)>> {
-    let mut zip = zip::ZipArchive::new(reader)
-        .map_err(|e| Error::format(path, format!("not a readable NPZ archive: {e}")))?;
+fn read_npz_from<T: Element, R: Read + Seek>(reader: R, path: &Path) -> Result<Vec<(String, Array<T>)>> {
+    let mut zip =
+        zip::ZipArchive::new(reader).map_err(|e| Error::format(path, format!("not a readable NPZ archive: {e}")))?;
     let mut arrays = Vec::new();
     for i in 0..zip.len() {
-        let entry = zip
-            .by_index(i)
-            .map_err(|e| Error::format(path, format!("entry {i}: {e}")))?;
-        let entry_name = entry
-            .name()
-            .map_err(|e| Error::format(path, format!("entry {i}: {e}")))?
-            .into_owned();
-        let Some(name) = npyz::npz::array_name_from_file_name(&entry_name).map(str::to_owned)
-        else {
+        let entry = zip.by_index(i).map_err(|e| Error::format(path, format!("entry {i}: {e}")))?;
+        let entry_name = entry.name().map_err(|e| Error::format(path, format!("entry {i}: {e}")))?.into_owned();
+        let Some(name) = npyz::npz::array_name_from_file_name(&entry_name).map(str::to_owned) else {
             continue;
         };
         let array = read_array(entry, path).map_err(|e| match e {
-            Error::Format { message, .. } => {
-                Error::format(path, format!("array {name}: {message}"))
-            }
+            Error::Format { message, .. } => Error::format(path, format!("array {name}: {message}")),
             other => other,
         })?;
         arrays.push((name, array));
@@ -166,8 +115,7 @@ pub fn write_npz<T: Element>(path: &Path, arrays: &[(String, Array<T>)]) -> Resu
     }
     write_atomically(path, |out| {
         let mut zip = zip::ZipWriter::new(out);
-        let options = zip::write::SimpleFileOptions::default()
-            .compression_method(zip::CompressionMethod::Deflated);
+        let options = zip::write::SimpleFileOptions::default().compression_method(zip::CompressionMethod::Deflated);
         for (name, array) in arrays {
             zip.start_file(npyz::npz::file_name_from_array_name(name), options)?;
             write_array(&mut zip, array)?;

@@ -22,9 +22,7 @@ pub fn read_png(path: &Path) -> Result<PngImage> {
     decoder.set_transformations(Transformations::EXPAND);
     let bad = |e: png::DecodingError| Error::format(path, format!("not a readable PNG: {e}"));
     let mut reader = decoder.read_info().map_err(bad)?;
-    let size = reader
-        .output_buffer_size()
-        .ok_or_else(|| Error::format(path, "PNG too large"))?;
+    let size = reader.output_buffer_size().ok_or_else(|| Error::format(path, "PNG too large"))?;
     let mut buf = vec![0u8; size];
     let info = reader.next_frame(&mut buf).map_err(bad)?;
     buf.truncate(info.buffer_size());
@@ -32,10 +30,7 @@ pub fn read_png(path: &Path) -> Result<PngImage> {
     let channels = info.color_type.samples();
     let image = match info.bit_depth {
         BitDepth::Sixteen => {
-            let samples = buf
-                .chunks_exact(2)
-                .map(|b| u16::from_be_bytes([b[0], b[1]]))
-                .collect();
+            let samples = buf.chunks_exact(2).map(|b| u16::from_be_bytes([b[0], b[1]])).collect();
             PngImage::U16(Image::from_vec(w, h, channels, samples)?)
         }
         _ => PngImage::U8(Image::from_vec(w, h, channels, buf)?),
@@ -65,23 +60,11 @@ fn color_type(channels: usize, path: &Path) -> Result<ColorType> {
         2 => ColorType::GrayscaleAlpha,
         3 => ColorType::Rgb,
         4 => ColorType::Rgba,
-        n => {
-            return Err(Error::format(
-                path,
-                format!("a PNG cannot hold {n} channels"),
-            ))
-        }
+        n => return Err(Error::format(path, format!("a PNG cannot hold {n} channels"))),
     })
 }
 
-fn write_png_bytes(
-    path: &Path,
-    w: usize,
-    h: usize,
-    c: usize,
-    depth: BitDepth,
-    bytes: &[u8],
-) -> Result<()> {
+fn write_png_bytes(path: &Path, w: usize, h: usize, c: usize, depth: BitDepth, bytes: &[u8]) -> Result<()> {
     let color = color_type(c, path)?;
     write_atomically(path, |out| {
         let mut encoder = png::Encoder::new(out, w as u32, h as u32);

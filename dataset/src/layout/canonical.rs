@@ -96,15 +96,8 @@ pub struct ViewFiles {
 }
 
 fn stokes_channels(channels: usize) -> Vec<String> {
-    let suffixes: &[&str] = if channels == 1 {
-        &[""]
-    } else {
-        &[".R", ".G", ".B"]
-    };
-    ["S0", "S1", "S2"]
-        .iter()
-        .flat_map(|s| suffixes.iter().map(move |c| format!("{s}{c}")))
-        .collect()
+    let suffixes: &[&str] = if channels == 1 { &[""] } else { &[".R", ".G", ".B"] };
+    ["S0", "S1", "S2"].iter().flat_map(|s| suffixes.iter().map(move |c| format!("{s}{c}"))).collect()
 }
 
 fn rows4(m: &Matrix4<f64>) -> [[f64; 4]; 4] {
@@ -119,21 +112,15 @@ fn from_rows4(r: &[[f64; 4]; 4]) -> Matrix4<f64> {
 pub fn read(dir: &Path) -> Result<Scene> {
     let path = dir.join(MANIFEST);
     let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    let manifest: Manifest = serde_json::from_str(&text)
-        .map_err(|e| Error::format(&path, format!("bad manifest: {e}")))?;
+    let manifest: Manifest =
+        serde_json::from_str(&text).map_err(|e| Error::format(&path, format!("bad manifest: {e}")))?;
     if manifest.format != FORMAT {
-        return Err(Error::format(
-            &path,
-            format!("format is {:?}, expected {FORMAT:?}", manifest.format),
-        ));
+        return Err(Error::format(&path, format!("format is {:?}, expected {FORMAT:?}", manifest.format)));
     }
     if manifest.version > VERSION {
         return Err(Error::format(
             &path,
-            format!(
-                "version {} is newer than this program reads ({VERSION})",
-                manifest.version
-            ),
+            format!("version {} is newer than this program reads ({VERSION})", manifest.version),
         ));
     }
     let views = manifest
@@ -141,28 +128,13 @@ pub fn read(dir: &Path) -> Result<Scene> {
         .par_iter()
         .map(|record| read_view(dir, record).map_err(|e| e.in_file(&path)))
         .collect::<Result<_>>()?;
-    let mesh = manifest
-        .mesh
-        .as_ref()
-        .map(|f| Mesh::read(&dir.join(f)))
-        .transpose()?;
-    let env_map = manifest
-        .env_map
-        .as_ref()
-        .map(|f| exr::read_exr(&dir.join(f), &["R", "G", "B"]))
-        .transpose()?;
-    Ok(Scene {
-        views,
-        normalization: from_rows4(&manifest.normalization),
-        mesh,
-        env_map,
-        metadata: manifest.metadata,
-    })
+    let mesh = manifest.mesh.as_ref().map(|f| Mesh::read(&dir.join(f))).transpose()?;
+    let env_map = manifest.env_map.as_ref().map(|f| exr::read_exr(&dir.join(f), &["R", "G", "B"])).transpose()?;
+    Ok(Scene { views, normalization: from_rows4(&manifest.normalization), mesh, env_map, metadata: manifest.metadata })
 }
 
 fn read_view(dir: &Path, record: &ViewRecord) -> Result<View> {
-    let camera = Camera::try_from(&record.camera)
-        .map_err(|e| Error::invalid(format!("view {}: {e}", record.name)))?;
+    let camera = Camera::try_from(&record.camera).map_err(|e| Error::invalid(format!("view {}: {e}", record.name)))?;
     let mut view = View::new(record.name.clone(), record.split, camera);
     view.projection = record.projection.as_ref().map(from_rows4);
     let f = &record.files;
@@ -184,10 +156,7 @@ fn read_view(dir: &Path, record: &ViewRecord) -> Result<View> {
     if let Some(files) = &f.polarizers {
         let [a, b, c, d] = files.clone().map(|file| png::read_png_u16(&dir.join(file)));
         let scale = record.polarizer_scale.unwrap_or(1.0);
-        view.polarized = Some(PolarizerImages {
-            scale,
-            images: [a?, b?, c?, d?],
-        });
+        view.polarized = Some(PolarizerImages { scale, images: [a?, b?, c?, d?] });
     }
     if let Some(file) = &f.preview {
         view.preview = Some(png::read_png_u8(&dir.join(file))?);
@@ -199,33 +168,21 @@ fn read_view(dir: &Path, record: &ViewRecord) -> Result<View> {
 /// `S0 S1 S2` (mono).
 pub fn read_stokes(path: &Path) -> Result<Stokes> {
     let (_, _, channels) = exr::read_exr_channels(path)?;
-    let per_component = if channels.iter().any(|(n, _)| n == "S0.R") {
-        3
-    } else {
-        1
-    };
+    let per_component = if channels.iter().any(|(n, _)| n == "S0.R") { 3 } else { 1 };
     let names = stokes_channels(per_component);
     let all = exr::read_exr(path, &names.iter().map(String::as_str).collect::<Vec<_>>())?;
     let component = |k: usize| {
-        let planes: Vec<Image<f32>> = (0..per_component)
-            .map(|c| all.channel(k * per_component + c))
-            .collect();
+        let planes: Vec<Image<f32>> = (0..per_component).map(|c| all.channel(k * per_component + c)).collect();
         interleave(&planes)
     };
-    Ok(Stokes {
-        s0: component(0),
-        s1: component(1),
-        s2: component(2),
-    })
+    Ok(Stokes { s0: component(0), s1: component(1), s2: component(2) })
 }
 
 /// Write Stokes images (1 or 3 channels each) to one EXR file, as [`read_stokes`] reads them.
 pub fn write_stokes(path: &Path, s: &Stokes) -> Result<()> {
     let per_component = s.s0.channels();
-    let planes: Vec<Image<f32>> = [&s.s0, &s.s1, &s.s2]
-        .iter()
-        .flat_map(|img| (0..per_component).map(|c| img.channel(c)))
-        .collect();
+    let planes: Vec<Image<f32>> =
+        [&s.s0, &s.s1, &s.s2].iter().flat_map(|img| (0..per_component).map(|c| img.channel(c))).collect();
     let names = stokes_channels(per_component);
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     exr::write_exr(path, &interleave(&planes), &names)
@@ -234,33 +191,19 @@ pub fn write_stokes(path: &Path, s: &Stokes) -> Result<()> {
 /// Interleave single-channel planes of one size into one image.
 fn interleave(planes: &[Image<f32>]) -> Image<f32> {
     let (w, h) = planes[0].size();
-    let data = (0..w * h)
-        .flat_map(|p| planes.iter().map(move |plane| plane.data()[p]))
-        .collect();
+    let data = (0..w * h).flat_map(|p| planes.iter().map(move |plane| plane.data()[p])).collect();
     Image::from_vec(w, h, planes.len(), data).expect("planes of one size")
 }
 
 /// Write a canonical-layout scene; `scene.json` is written last.
 pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
-    let views = scene
-        .views
-        .par_iter()
-        .map(|view| write_view(dir, view))
-        .collect::<Result<Vec<_>>>()?;
-    let mesh = scene
-        .mesh
-        .as_ref()
-        .map(|m| {
-            m.write(&dir.join("mesh.ply"))
-                .map(|_| "mesh.ply".to_string())
-        })
-        .transpose()?;
+    let views = scene.views.par_iter().map(|view| write_view(dir, view)).collect::<Result<Vec<_>>>()?;
+    let mesh =
+        scene.mesh.as_ref().map(|m| m.write(&dir.join("mesh.ply")).map(|_| "mesh.ply".to_string())).transpose()?;
     let env_map = scene
         .env_map
         .as_ref()
-        .map(|e| {
-            exr::write_exr(&dir.join("env.exr"), e, &["R", "G", "B"]).map(|_| "env.exr".to_string())
-        })
+        .map(|e| exr::write_exr(&dir.join("env.exr"), e, &["R", "G", "B"]).map(|_| "env.exr".to_string()))
         .transpose()?;
     let manifest = Manifest {
         format: FORMAT.into(),
@@ -296,19 +239,12 @@ fn write_view(dir: &Path, view: &View) -> Result<ViewRecord> {
         files.dop = put("dop.exr", &|p| exr::write_exr(p, d, &["DoP"]))?;
     }
     if let Some(n) = &view.normals {
-        files.normal = put("normal.exr", &|p| {
-            exr::write_exr(p, n, &["N.X", "N.Y", "N.Z"])
-        })?;
+        files.normal = put("normal.exr", &|p| exr::write_exr(p, n, &["N.X", "N.Y", "N.Z"]))?;
     }
     if let Some(pol) = &view.polarized {
         let mut names = Vec::with_capacity(4);
         for (image, deg) in pol.images.iter().zip(POLARIZER_ANGLES_DEG) {
-            names.push(
-                put(&format!("polarizer_{deg:03}.png"), &|p| {
-                    png::write_png_u16(p, image)
-                })?
-                .expect("written"),
-            );
+            names.push(put(&format!("polarizer_{deg:03}.png"), &|p| png::write_png_u16(p, image))?.expect("written"));
         }
         files.polarizers = Some(names.try_into().expect("four angles"));
     }

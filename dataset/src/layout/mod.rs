@@ -24,18 +24,11 @@ impl Layout {
         } else if dir.join(nersp::CAMERAS).is_file() {
             Ok(Layout::Nersp)
         } else if !dir.is_dir() {
-            Err(Error::io(
-                dir,
-                std::io::Error::new(std::io::ErrorKind::NotFound, "no such scene folder"),
-            ))
+            Err(Error::io(dir, std::io::Error::new(std::io::ErrorKind::NotFound, "no such scene folder")))
         } else {
             Err(Error::format(
                 dir,
-                format!(
-                    "not a scene: neither {} nor {} found",
-                    canonical::MANIFEST,
-                    nersp::CAMERAS
-                ),
+                format!("not a scene: neither {} nor {} found", canonical::MANIFEST, nersp::CAMERAS),
             ))
         }
     }
@@ -70,19 +63,11 @@ pub fn write_scene(scene: &Scene, dir: &Path, layout: Layout) -> Result<()> {
 }
 
 /// An HxW or HxWxC float array as an image.
-pub(crate) fn image_from_array(
-    path: &Path,
-    a: crate::io::npy::Array<f32>,
-) -> Result<crate::Image<f32>> {
+pub(crate) fn image_from_array(path: &Path, a: crate::io::npy::Array<f32>) -> Result<crate::Image<f32>> {
     let (h, w, c) = match a.shape[..] {
         [h, w] => (h, w, 1),
         [h, w, c] => (h, w, c),
-        _ => {
-            return Err(Error::format(
-                path,
-                format!("expected an HxW or HxWxC image, shape is {:?}", a.shape),
-            ))
-        }
+        _ => return Err(Error::format(path, format!("expected an HxW or HxWxC image, shape is {:?}", a.shape))),
     };
     crate::Image::from_vec(w, h, c, a.data).map_err(|e| e.in_file(path))
 }
@@ -91,8 +76,5 @@ pub(crate) fn image_from_array(
 pub(crate) fn array_from_image(image: &crate::Image<f32>) -> crate::io::npy::Array<f32> {
     let (w, h, c) = (image.width(), image.height(), image.channels());
     let shape = if c == 1 { vec![h, w] } else { vec![h, w, c] };
-    crate::io::npy::Array {
-        shape,
-        data: image.data().to_vec(),
-    }
+    crate::io::npy::Array { shape, data: image.data().to_vec() }
 }

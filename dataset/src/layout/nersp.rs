@@ -18,9 +18,7 @@ use super::{array_from_image, image_from_array};
 use crate::camera::{matrix_from_rows, matrix_rows};
 use crate::io::{exr, npy, png, write_bytes_atomically};
 use crate::polarization::{aop_from_u16, aop_to_u16, POLARIZER_ANGLES_DEG};
-use crate::{
-    visualize, Camera, Error, Image, Mesh, PolarizerImages, Result, Scene, Split, Stokes, View,
-};
+use crate::{visualize, Camera, Error, Image, Mesh, PolarizerImages, Result, Scene, Split, Stokes, View};
 use nalgebra::{Matrix3x4, Matrix4, Vector3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -65,10 +63,7 @@ fn train_file(dir: &Path, folder: &str, index: usize, ext: &str) -> std::path::P
 
 fn read_matrix4(path: &Path, name: &str, array: &npy::Array<f64>) -> Result<Matrix4<f64>> {
     if array.shape != [4, 4] {
-        return Err(Error::format(
-            path,
-            format!("{name} has shape {:?}, expected [4, 4]", array.shape),
-        ));
+        return Err(Error::format(path, format!("{name} has shape {:?}, expected [4, 4]", array.shape)));
     }
     Ok(Matrix4::from_row_slice(&array.data))
 }
@@ -78,9 +73,7 @@ pub fn read(dir: &Path) -> Result<Scene> {
     let cameras_path = dir.join(CAMERAS);
     let arrays = npy::read_npz::<f64>(&cameras_path)?;
     let lookup = |name: &str| arrays.iter().find(|(n, _)| n == name).map(|(_, a)| a);
-    let count = (0..)
-        .take_while(|i| lookup(&format!("world_mat_{i}")).is_some())
-        .count();
+    let count = (0..).take_while(|i| lookup(&format!("world_mat_{i}")).is_some()).count();
     if count == 0 {
         return Err(Error::format(&cameras_path, "no world_mat_0"));
     }
@@ -88,11 +81,7 @@ pub fn read(dir: &Path) -> Result<Scene> {
     let mut normalization = None;
     for i in 0..count {
         let name = format!("world_mat_{i}");
-        world_mats.push(read_matrix4(
-            &cameras_path,
-            &name,
-            lookup(&name).expect("counted"),
-        )?);
+        world_mats.push(read_matrix4(&cameras_path, &name, lookup(&name).expect("counted"))?);
         let scale_name = format!("scale_mat_{i}");
         let scale = match lookup(&scale_name) {
             Some(a) => read_matrix4(&cameras_path, &scale_name, a)?,
@@ -101,34 +90,22 @@ pub fn read(dir: &Path) -> Result<Scene> {
         match normalization {
             None => normalization = Some(scale),
             Some(first) if first != scale => {
-                return Err(Error::format(&cameras_path, format!("{scale_name} differs from scale_mat_0; per-view normalisations are not supported")));
+                return Err(Error::format(
+                    &cameras_path,
+                    format!("{scale_name} differs from scale_mat_0; per-view normalisations are not supported"),
+                ));
             }
             _ => {}
         }
     }
 
     let gt_path = dir.join(GT_CAMERAS);
-    let (gt_cameras, mut metadata) = if gt_path.is_file() {
-        read_gt_cameras(&gt_path)?
-    } else {
-        (Vec::new(), serde_json::Map::new())
-    };
-    let png_scale = metadata
-        .remove(PNG_SCALE)
-        .and_then(|v| v.as_f64())
-        .unwrap_or(1.0);
-    let gt_train: Vec<&GtCamera> = gt_cameras
-        .iter()
-        .filter(|c| c.split == Split::Train)
-        .collect();
+    let (gt_cameras, mut metadata) =
+        if gt_path.is_file() { read_gt_cameras(&gt_path)? } else { (Vec::new(), serde_json::Map::new()) };
+    let png_scale = metadata.remove(PNG_SCALE).and_then(|v| v.as_f64()).unwrap_or(1.0);
+    let gt_train: Vec<&GtCamera> = gt_cameras.iter().filter(|c| c.split == Split::Train).collect();
     if !gt_train.is_empty() && gt_train.len() != count {
-        return Err(Error::format(
-            &gt_path,
-            format!(
-                "{} training cameras, but {CAMERAS} has {count}",
-                gt_train.len()
-            ),
-        ));
+        return Err(Error::format(&gt_path, format!("{} training cameras, but {CAMERAS} has {count}", gt_train.len())));
     }
 
     let mut views: Vec<View> = (0..count)
@@ -141,40 +118,22 @@ pub fn read(dir: &Path) -> Result<Scene> {
             .filter(|c| c.split == Split::Eval)
             .map(|c| View::new(c.name.clone(), Split::Eval, c.camera())),
     );
-    views
-        .par_iter_mut()
-        .try_for_each(|view| read_ground_truth_images(dir, view))?;
+    views.par_iter_mut().try_for_each(|view| read_ground_truth_images(dir, view))?;
 
     let mesh_path = dir.join("gt/mesh.ply");
-    let mesh = mesh_path
-        .is_file()
-        .then(|| Mesh::read(&mesh_path))
-        .transpose()?;
+    let mesh = mesh_path.is_file().then(|| Mesh::read(&mesh_path)).transpose()?;
     let env_path = dir.join("gt/env.exr");
-    let env_map = env_path
-        .is_file()
-        .then(|| exr::read_exr(&env_path, &RGB))
-        .transpose()?;
-    Ok(Scene {
-        views,
-        normalization: normalization.expect("count > 0"),
-        mesh,
-        env_map,
-        metadata,
-    })
+    let env_map = env_path.is_file().then(|| exr::read_exr(&env_path, &RGB)).transpose()?;
+    Ok(Scene { views, normalization: normalization.expect("count > 0"), mesh, env_map, metadata })
 }
 
-fn read_gt_cameras(
-    path: &Path,
-) -> Result<(Vec<GtCamera>, serde_json::Map<String, serde_json::Value>)> {
+fn read_gt_cameras(path: &Path) -> Result<(Vec<GtCamera>, serde_json::Map<String, serde_json::Value>)> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let mut json: serde_json::Map<String, serde_json::Value> =
         serde_json::from_str(&text).map_err(|e| Error::format(path, format!("bad JSON: {e}")))?;
-    let cameras = json
-        .remove("cameras")
-        .ok_or_else(|| Error::format(path, "no \"cameras\" list"))?;
-    let cameras: Vec<GtCamera> = serde_json::from_value(cameras)
-        .map_err(|e| Error::format(path, format!("bad camera entry: {e}")))?;
+    let cameras = json.remove("cameras").ok_or_else(|| Error::format(path, "no \"cameras\" list"))?;
+    let cameras: Vec<GtCamera> =
+        serde_json::from_value(cameras).map_err(|e| Error::format(path, format!("bad camera entry: {e}")))?;
     Ok((cameras, json))
 }
 
@@ -189,11 +148,7 @@ fn read_train_view(
         let path = train_file(dir, folder, i, "npy");
         npy::read_npy::<f32>(&path).and_then(|a| image_from_array(&path, a))
     };
-    let stokes = Stokes {
-        s0: read_stokes("s0")?,
-        s1: read_stokes("s1")?,
-        s2: read_stokes("s2")?,
-    };
+    let stokes = Stokes { s0: read_stokes("s0")?, s1: read_stokes("s1")?, s2: read_stokes("s2")? };
     let (w, h) = stokes.s0.size();
     let p: Matrix3x4<f64> = world_mat.fixed_view::<3, 4>(0, 0).into_owned();
     let camera = match gt {
@@ -204,16 +159,12 @@ fn read_train_view(
             if deviation > 1e-9 {
                 return Err(Error::format(
                     dir.join(GT_CAMERAS),
-                    format!(
-                        "camera {} disagrees with world_mat_{i} (relative {deviation:.1e})",
-                        gt.name
-                    ),
+                    format!("camera {} disagrees with world_mat_{i} (relative {deviation:.1e})", gt.name),
                 ));
             }
             camera
         }
-        None => Camera::from_projection(&p, w as u32, h as u32)
-            .map_err(|e| e.in_file(dir.join(CAMERAS)))?,
+        None => Camera::from_projection(&p, w as u32, h as u32).map_err(|e| e.in_file(dir.join(CAMERAS)))?,
     };
     let name = gt.map_or_else(|| format!("{i:03}"), |g| g.name.clone());
     let mut view = View::new(name, Split::Train, camera);
@@ -232,32 +183,20 @@ fn read_train_view(
     if polarizer_path(0).is_file() {
         let images = POLARIZER_ANGLES_DEG.map(|deg| png::read_png_u16(&polarizer_path(deg)));
         let [a, b, c, d] = images;
-        view.polarized = Some(PolarizerImages {
-            scale: png_scale,
-            images: [a?, b?, c?, d?],
-        });
+        view.polarized = Some(PolarizerImages { scale: png_scale, images: [a?, b?, c?, d?] });
     }
     Ok(view)
 }
 
 fn read_mask(path: &Path) -> Result<Image<u8>> {
     let mask = png::read_png_u8(path)?;
-    Ok(if mask.channels() == 1 {
-        mask
-    } else {
-        mask.channel(0)
-    })
+    Ok(if mask.channels() == 1 { mask } else { mask.channel(0) })
 }
 
 /// AoP from the R channel of an azimuth map (16-bit, 1, 3 or 4 channels).
 fn read_azimuth_map(path: &Path) -> Result<Image<f32>> {
     let map = png::read_png_u16(path)?;
-    if map.channels() >= 3
-        && map
-            .data()
-            .chunks_exact(map.channels())
-            .any(|p| p[0] != p[1] || p[0] != p[2])
-    {
+    if map.channels() >= 3 && map.data().chunks_exact(map.channels()).any(|p| p[0] != p[1] || p[0] != p[2]) {
         return Err(Error::format(path, "azimuth map channels R, G, B differ"));
     }
     Ok(map.channel(0).map(aop_from_u16))
@@ -269,10 +208,7 @@ fn read_ground_truth_images(dir: &Path, view: &mut View) -> Result<()> {
         let mask = read_mask(&mask_path)?;
         match &view.mask {
             Some(existing) if *existing != mask => {
-                return Err(Error::format(
-                    &mask_path,
-                    "differs from the training mask in mask/",
-                ));
+                return Err(Error::format(&mask_path, "differs from the training mask in mask/"));
             }
             Some(_) => {}
             None => view.mask = Some(mask),
@@ -289,40 +225,22 @@ fn read_ground_truth_images(dir: &Path, view: &mut View) -> Result<()> {
 /// previews are derived from the Stokes when the view has none.
 pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
     let train: Vec<&View> = scene.train_views().collect();
-    let scales: Vec<f64> = train
-        .iter()
-        .filter_map(|v| v.polarized.as_ref().map(|p| p.scale))
-        .collect();
+    let scales: Vec<f64> = train.iter().filter_map(|v| v.polarized.as_ref().map(|p| p.scale)).collect();
     if scales.windows(2).any(|w| w[0] != w[1]) {
-        return Err(Error::invalid(
-            "the NeRSP layout holds one png_scale; views differ",
-        ));
+        return Err(Error::invalid("the NeRSP layout holds one png_scale; views differ"));
     }
-    train
-        .par_iter()
-        .enumerate()
-        .try_for_each(|(i, view)| write_train_view(dir, i, view))?;
+    train.par_iter().enumerate().try_for_each(|(i, view)| write_train_view(dir, i, view))?;
 
-    let has_ground_truth = scene
-        .views
-        .iter()
-        .any(|v| v.split == Split::Eval || v.normals.is_some())
+    let has_ground_truth = scene.views.iter().any(|v| v.split == Split::Eval || v.normals.is_some())
         || scene.mesh.is_some()
         || scene.env_map.is_some();
     if has_ground_truth {
         scene.views.par_iter().try_for_each(|view| {
             if let Some(mask) = &view.mask {
-                png::write_png_u8(
-                    &dir.join("gt/mask").join(format!("{}.png", view.name)),
-                    mask,
-                )?;
+                png::write_png_u8(&dir.join("gt/mask").join(format!("{}.png", view.name)), mask)?;
             }
             if let Some(normals) = &view.normals {
-                exr::write_exr(
-                    &dir.join("gt/normal").join(format!("{}.exr", view.name)),
-                    normals,
-                    &NORMAL_CHANNELS,
-                )?;
+                exr::write_exr(&dir.join("gt/normal").join(format!("{}.exr", view.name)), normals, &NORMAL_CHANNELS)?;
             }
             Ok::<_, Error>(())
         })?;
@@ -350,20 +268,14 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
             height: v.camera.height,
         })
         .collect();
-    json.insert(
-        "cameras".into(),
-        serde_json::to_value(cameras).expect("plain data"),
-    );
+    json.insert("cameras".into(), serde_json::to_value(cameras).expect("plain data"));
     let text = serde_json::to_string_pretty(&json).expect("plain data");
     write_bytes_atomically(&dir.join(GT_CAMERAS), text.as_bytes())?;
 
     // The index file last: a folder without it is an incomplete write.
     let mut arrays = Vec::new();
     for (i, view) in train.iter().enumerate() {
-        let matrix = |m: Matrix4<f64>| npy::Array {
-            shape: vec![4, 4],
-            data: m.transpose().as_slice().to_vec(),
-        };
+        let matrix = |m: Matrix4<f64>| npy::Array { shape: vec![4, 4], data: m.transpose().as_slice().to_vec() };
         arrays.push((format!("world_mat_{i}"), matrix(view.projection_matrix())));
         arrays.push((format!("scale_mat_{i}"), matrix(scene.normalization)));
     }
@@ -372,15 +284,9 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
 
 fn write_train_view(dir: &Path, i: usize, view: &View) -> Result<()> {
     let missing = |what: &str| {
-        Error::invalid(format!(
-            "view {}: the NeRSP layout needs {what} for every training view",
-            view.name
-        ))
+        Error::invalid(format!("view {}: the NeRSP layout needs {what} for every training view", view.name))
     };
-    let stokes = view
-        .stokes
-        .as_ref()
-        .ok_or_else(|| missing("Stokes images"))?;
+    let stokes = view.stokes.as_ref().ok_or_else(|| missing("Stokes images"))?;
     let mask = view.mask.as_ref().ok_or_else(|| missing("a mask"))?;
     for (folder, image) in [("s0", &stokes.s0), ("s1", &stokes.s1), ("s2", &stokes.s2)] {
         npy::write_npy(&train_file(dir, folder, i, "npy"), &array_from_image(image))?;
@@ -400,17 +306,11 @@ fn write_train_view(dir: &Path, i: usize, view: &View) -> Result<()> {
         &train_file(dir, "input_azimuth_maps", i, "png"),
         &Image::from_vec(aop.width(), aop.height(), 4, rgba)?,
     )?;
-    let preview = view
-        .preview
-        .clone()
-        .unwrap_or_else(|| visualize::preview(&stokes.s0));
+    let preview = view.preview.clone().unwrap_or_else(|| visualize::preview(&stokes.s0));
     png::write_png_u8(&train_file(dir, "image", i, "png"), &preview)?;
     if let Some(p) = &view.polarized {
         for (image, deg) in p.images.iter().zip(POLARIZER_ANGLES_DEG) {
-            png::write_png_u16(
-                &dir.join("polarized").join(format!("{i:04}_{deg:03}.png")),
-                image,
-            )?;
+            png::write_png_u16(&dir.join("polarized").join(format!("{i:04}_{deg:03}.png")), image)?;
         }
     }
     Ok(())

@@ -71,12 +71,7 @@ impl Mesh {
         let mesh = match extension(path).as_str() {
             "ply" => ply::read_ply(path)?,
             "obj" => obj::read_obj(path)?,
-            other => {
-                return Err(Error::format(
-                    path,
-                    format!("unknown mesh format {other:?} (use .ply or .obj)"),
-                ))
-            }
+            other => return Err(Error::format(path, format!("unknown mesh format {other:?} (use .ply or .obj)"))),
         };
         mesh.validate().map_err(|e| e.in_file(path))?;
         Ok(mesh)
@@ -88,10 +83,7 @@ impl Mesh {
         match extension(path).as_str() {
             "ply" => ply::write_ply(path, self, ply::PlyEncoding::Binary),
             "obj" => obj::write_obj(path, self),
-            other => Err(Error::format(
-                path,
-                format!("unknown mesh format {other:?} (use .ply or .obj)"),
-            )),
+            other => Err(Error::format(path, format!("unknown mesh format {other:?} (use .ply or .obj)"))),
         }
     }
 
@@ -105,19 +97,10 @@ impl Mesh {
     pub fn colors(&self) -> Option<Vec<[f32; 3]>> {
         let channels = [["red", "green", "blue"], ["r", "g", "b"]]
             .iter()
-            .find_map(|names| {
-                names
-                    .iter()
-                    .map(|n| self.property(n))
-                    .collect::<Option<Vec<_>>>()
-            })?;
+            .find_map(|names| names.iter().map(|n| self.property(n)).collect::<Option<Vec<_>>>())?;
         Some(
             (0..self.positions.len())
-                .map(|i| {
-                    [0, 1, 2].map(|c| {
-                        (channels[c].values[i] / channels[c].kind.color_full_scale()) as f32
-                    })
-                })
+                .map(|i| [0, 1, 2].map(|c| (channels[c].values[i] / channels[c].kind.color_full_scale()) as f32))
                 .collect(),
         )
     }
@@ -126,31 +109,19 @@ impl Mesh {
     pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
         let first = *self.positions.first()?;
         Some(self.positions.iter().fold((first, first), |(lo, hi), p| {
-            (
-                [0, 1, 2].map(|k| lo[k].min(p[k])),
-                [0, 1, 2].map(|k| hi[k].max(p[k])),
-            )
+            ([0, 1, 2].map(|k| lo[k].min(p[k])), [0, 1, 2].map(|k| hi[k].max(p[k])))
         }))
     }
 
     /// Check counts, indices and finiteness.
     pub fn validate(&self) -> Result<()> {
         let n = self.positions.len();
-        if let Some(i) = self
-            .positions
-            .iter()
-            .position(|p| !p.iter().all(|v| v.is_finite()))
-        {
-            return Err(Error::invalid(format!(
-                "vertex {i} has a non-finite position"
-            )));
+        if let Some(i) = self.positions.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+            return Err(Error::invalid(format!("vertex {i} has a non-finite position")));
         }
         if let Some(normals) = &self.normals {
             if normals.len() != n {
-                return Err(Error::invalid(format!(
-                    "{} normals for {n} vertices",
-                    normals.len()
-                )));
+                return Err(Error::invalid(format!("{} normals for {n} vertices", normals.len())));
             }
         }
         for p in &self.vertex_properties {
@@ -162,24 +133,15 @@ impl Mesh {
                 )));
             }
         }
-        if let Some((f, face)) = self
-            .faces
-            .iter()
-            .enumerate()
-            .find(|(_, f)| f.iter().any(|&i| i as usize >= n))
-        {
-            return Err(Error::invalid(format!(
-                "face {f} {face:?} refers to a vertex beyond the {n} vertices"
-            )));
+        if let Some((f, face)) = self.faces.iter().enumerate().find(|(_, f)| f.iter().any(|&i| i as usize >= n)) {
+            return Err(Error::invalid(format!("face {f} {face:?} refers to a vertex beyond the {n} vertices")));
         }
         Ok(())
     }
 }
 
 fn extension(path: &Path) -> String {
-    path.extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default()
+    path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default()
 }
 
 /// Split a polygon into a triangle fan.

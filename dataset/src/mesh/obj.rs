@@ -8,34 +8,22 @@ use std::path::Path;
 
 /// Read an OBJ file; all its objects are merged into one mesh. Materials are ignored.
 pub fn read_obj(path: &Path) -> Result<Mesh> {
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ..Default::default()
-    };
+    let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
     let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| match e {
-        tobj::LoadError::OpenFileFailed => Error::io(
-            path,
-            std::io::Error::new(std::io::ErrorKind::NotFound, "cannot open"),
-        ),
+        tobj::LoadError::OpenFileFailed => {
+            Error::io(path, std::io::Error::new(std::io::ErrorKind::NotFound, "cannot open"))
+        }
         other => Error::format(path, format!("not a readable OBJ file: {other}")),
     })?;
     let mut mesh = Mesh::default();
     let mut normals = Vec::new();
-    let all_have_normals = models
-        .iter()
-        .all(|m| m.mesh.normals.len() == m.mesh.positions.len());
+    let all_have_normals = models.iter().all(|m| m.mesh.normals.len() == m.mesh.positions.len());
     for model in &models {
         let m = &model.mesh;
         let offset = mesh.positions.len() as u32;
-        mesh.positions
-            .extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        mesh.positions.extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
         normals.extend(m.normals.chunks_exact(3).map(|n| [n[0], n[1], n[2]]));
-        mesh.faces.extend(
-            m.indices
-                .chunks_exact(3)
-                .map(|f| [f[0] + offset, f[1] + offset, f[2] + offset]),
-        );
+        mesh.faces.extend(m.indices.chunks_exact(3).map(|f| [f[0] + offset, f[1] + offset, f[2] + offset]));
     }
     if all_have_normals && !normals.is_empty() {
         mesh.normals = Some(normals);
@@ -46,12 +34,7 @@ pub fn read_obj(path: &Path) -> Result<Mesh> {
 /// Write positions, normals and triangles as OBJ text (other properties are not representable).
 pub fn write_obj(path: &Path, mesh: &Mesh) -> Result<()> {
     write_atomically(path, |out| {
-        writeln!(
-            out,
-            "# rmvp mesh: {} vertices, {} triangles",
-            mesh.positions.len(),
-            mesh.faces.len()
-        )?;
+        writeln!(out, "# rmvp mesh: {} vertices, {} triangles", mesh.positions.len(), mesh.faces.len())?;
         for p in &mesh.positions {
             writeln!(out, "v {} {} {}", p[0], p[1], p[2])?;
         }

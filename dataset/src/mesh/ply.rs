@@ -5,9 +5,7 @@ use super::{push_fan, Mesh, ScalarKind, VertexProperty};
 use crate::io::write_atomically;
 use crate::{Error, Result};
 use ply_rs_bw::parser::Parser;
-use ply_rs_bw::ply::{
-    DefaultElement, ElementDef, Encoding, Ply, Property, PropertyDef, PropertyType, ScalarType,
-};
+use ply_rs_bw::ply::{DefaultElement, ElementDef, Encoding, Ply, Property, PropertyDef, PropertyType, ScalarType};
 use ply_rs_bw::writer::Writer;
 use std::io::BufReader;
 use std::path::Path;
@@ -92,74 +90,44 @@ pub fn read_ply(path: &Path) -> Result<Mesh> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
     let ply = Parser::<DefaultElement>::new()
         .read_ply(&mut BufReader::new(file))
-        .map_err(|e| {
-            Error::format(
-                path,
-                format!("not a readable PLY file (truncated or malformed): {e}"),
-            )
-        })?;
-    let def = ply
-        .header
-        .elements
-        .get("vertex")
-        .ok_or_else(|| Error::format(path, "no vertex element"))?;
-    let vertices = ply
-        .payload
-        .get("vertex")
-        .map(Vec::as_slice)
-        .unwrap_or_default();
+        .map_err(|e| Error::format(path, format!("not a readable PLY file (truncated or malformed): {e}")))?;
+    let def = ply.header.elements.get("vertex").ok_or_else(|| Error::format(path, "no vertex element"))?;
+    let vertices = ply.payload.get("vertex").map(Vec::as_slice).unwrap_or_default();
     if vertices.len() != def.count {
         return Err(Error::format(
             path,
-            format!(
-                "header declares {} vertices, file holds {}",
-                def.count,
-                vertices.len()
-            ),
+            format!("header declares {} vertices, file holds {}", def.count, vertices.len()),
         ));
     }
     let mut columns: Vec<VertexProperty> = def
         .properties
         .values()
         .filter_map(|p| match &p.data_type {
-            PropertyType::Scalar(t) => Some(VertexProperty {
-                name: p.name.clone(),
-                kind: kind_of(t),
-                values: Vec::with_capacity(def.count),
-            }),
+            PropertyType::Scalar(t) => {
+                Some(VertexProperty { name: p.name.clone(), kind: kind_of(t), values: Vec::with_capacity(def.count) })
+            }
             PropertyType::List(..) => None,
         })
         .collect();
     for (i, v) in vertices.iter().enumerate() {
         for column in &mut columns {
-            let value = v.get(&column.name).and_then(scalar_value).ok_or_else(|| {
-                Error::format(
-                    path,
-                    format!("vertex {i} lacks scalar property {}", column.name),
-                )
-            })?;
+            let value = v
+                .get(&column.name)
+                .and_then(scalar_value)
+                .ok_or_else(|| Error::format(path, format!("vertex {i} lacks scalar property {}", column.name)))?;
             column.values.push(value);
         }
     }
-    let mut take = |name: &str| {
-        columns
-            .iter()
-            .position(|c| c.name == name)
-            .map(|i| columns.remove(i).values)
-    };
+    let mut take = |name: &str| columns.iter().position(|c| c.name == name).map(|i| columns.remove(i).values);
     let xyz = [take("x"), take("y"), take("z")];
     let [Some(x), Some(y), Some(z)] = xyz else {
         return Err(Error::format(path, "vertex element lacks x, y or z"));
     };
-    let positions = (0..x.len())
-        .map(|i| [x[i] as f32, y[i] as f32, z[i] as f32])
-        .collect();
+    let positions = (0..x.len()).map(|i| [x[i] as f32, y[i] as f32, z[i] as f32]).collect();
     let normals = match [take("nx"), take("ny"), take("nz")] {
-        [Some(nx), Some(ny), Some(nz)] => Some(
-            (0..nx.len())
-                .map(|i| [nx[i] as f32, ny[i] as f32, nz[i] as f32])
-                .collect(),
-        ),
+        [Some(nx), Some(ny), Some(nz)] => {
+            Some((0..nx.len()).map(|i| [nx[i] as f32, ny[i] as f32, nz[i] as f32]).collect())
+        }
         _ => None,
     };
     let mut faces = Vec::new();
@@ -168,25 +136,15 @@ pub fn read_ply(path: &Path) -> Result<Mesh> {
             let indices = ["vertex_indices", "vertex_index"]
                 .iter()
                 .find_map(|n| face.get(*n).and_then(list_indices))
-                .ok_or_else(|| {
-                    Error::format(path, format!("face {f} has no vertex_indices list"))
-                })?;
+                .ok_or_else(|| Error::format(path, format!("face {f} has no vertex_indices list")))?;
             let polygon: Vec<u32> = indices
                 .iter()
-                .map(|&i| {
-                    u32::try_from(i)
-                        .map_err(|_| Error::format(path, format!("face {f} has index {i}")))
-                })
+                .map(|&i| u32::try_from(i).map_err(|_| Error::format(path, format!("face {f} has index {i}"))))
                 .collect::<Result<_>>()?;
             push_fan(&mut faces, &polygon);
         }
     }
-    Ok(Mesh {
-        positions,
-        normals,
-        faces,
-        vertex_properties: columns,
-    })
+    Ok(Mesh { positions, normals, faces, vertex_properties: columns })
 }
 
 /// Write a mesh as PLY: `float x y z`, `float nx ny nz` if present, every extra property with
@@ -197,28 +155,17 @@ pub fn write_ply(path: &Path, mesh: &Mesh, encoding: PlyEncoding) -> Result<()> 
         PlyEncoding::Binary => Encoding::BinaryLittleEndian,
         PlyEncoding::Ascii => Encoding::Ascii,
     };
-    let mut names: Vec<(String, ScalarKind)> = ["x", "y", "z"]
-        .iter()
-        .map(|n| (n.to_string(), ScalarKind::F32))
-        .collect();
+    let mut names: Vec<(String, ScalarKind)> =
+        ["x", "y", "z"].iter().map(|n| (n.to_string(), ScalarKind::F32)).collect();
     if mesh.normals.is_some() {
-        names.extend(
-            ["nx", "ny", "nz"]
-                .iter()
-                .map(|n| (n.to_string(), ScalarKind::F32)),
-        );
+        names.extend(["nx", "ny", "nz"].iter().map(|n| (n.to_string(), ScalarKind::F32)));
     }
-    names.extend(
-        mesh.vertex_properties
-            .iter()
-            .map(|p| (p.name.clone(), p.kind)),
-    );
+    names.extend(mesh.vertex_properties.iter().map(|p| (p.name.clone(), p.kind)));
     let mut vertex_def = ElementDef::new("vertex".to_string());
     for (name, kind) in &names {
-        vertex_def.properties.insert(
-            name.clone(),
-            PropertyDef::new(name.clone(), PropertyType::Scalar(scalar_type(*kind))),
-        );
+        vertex_def
+            .properties
+            .insert(name.clone(), PropertyDef::new(name.clone(), PropertyType::Scalar(scalar_type(*kind))));
     }
     vertex_def.count = mesh.positions.len();
     ply.header.elements.insert("vertex".to_string(), vertex_def);
@@ -235,10 +182,7 @@ pub fn write_ply(path: &Path, mesh: &Mesh, encoding: PlyEncoding) -> Result<()> 
                 }
             }
             for prop in &mesh.vertex_properties {
-                e.insert(
-                    prop.name.clone(),
-                    scalar_property(prop.kind, prop.values[i]),
-                );
+                e.insert(prop.name.clone(), scalar_property(prop.kind, prop.values[i]));
             }
             e
         })
@@ -247,10 +191,7 @@ pub fn write_ply(path: &Path, mesh: &Mesh, encoding: PlyEncoding) -> Result<()> 
     if !mesh.faces.is_empty() {
         let mut face_def = ElementDef::new("face".to_string());
         let list = PropertyType::List(ScalarType::UChar, ScalarType::Int);
-        face_def.properties.insert(
-            "vertex_indices".to_string(),
-            PropertyDef::new("vertex_indices".to_string(), list),
-        );
+        face_def.properties.insert("vertex_indices".to_string(), PropertyDef::new("vertex_indices".to_string(), list));
         face_def.count = mesh.faces.len();
         ply.header.elements.insert("face".to_string(), face_def);
         let faces = mesh
@@ -258,16 +199,11 @@ pub fn write_ply(path: &Path, mesh: &Mesh, encoding: PlyEncoding) -> Result<()> 
             .iter()
             .map(|f| {
                 let mut e = DefaultElement::with_capacity(1);
-                e.insert(
-                    "vertex_indices".to_string(),
-                    Property::ListInt(f.map(|i| i as i32).to_vec()),
-                );
+                e.insert("vertex_indices".to_string(), Property::ListInt(f.map(|i| i as i32).to_vec()));
                 e
             })
             .collect();
         ply.payload.insert("face".to_string(), faces);
     }
-    write_atomically(path, |out| {
-        Writer::new().write_ply(out, &mut ply).map(|_| ())
-    })
+    write_atomically(path, |out| Writer::new().write_ply(out, &mut ply).map(|_| ()))
 }

@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Install the Debian 12 packages rmvp builds against. Idempotent: when everything is present it
+# only runs dpkg-query and returns in well under a second.
+set -euo pipefail
+
+packages=(
+  pkg-config
+  libopencv-dev     # demosaicing (opencv crate, links the system OpenCV 4.6)
+  clang libclang-dev # the opencv crate generates its bindings with libclang at build time
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+
+if ((${#missing[@]})); then
+  echo "rmvp: installing Debian packages: ${missing[*]}" >&2
+  sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -qq
+  $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+fi
+
+if ! command -v cargo >/dev/null 2>&1; then
+  echo "rmvp: cargo not found; install a Rust toolchain (1.80 or newer, e.g. with rustup) first" >&2
+  exit 1
+fi
