@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Install the Debian 12 packages rmvp builds against. Idempotent: when everything is present it
 # only runs dpkg-query and returns in well under a second.
+#   scripts/install-system-deps.sh          what building and testing need
+#   scripts/install-system-deps.sh bench    also the Python baseline of bench/ (numpy, OpenCV)
 set -euo pipefail
 
 packages=(
@@ -8,6 +10,9 @@ packages=(
   libopencv-dev     # demosaicing (opencv crate, links the system OpenCV 4.6)
   clang libclang-dev # the opencv crate generates its bindings with libclang at build time
 )
+if [ "${1:-}" = bench ]; then
+  packages+=(python3-numpy python3-opencv) # same OpenCV 4.6 as the Rust side
+fi
 
 missing=()
 for p in "${packages[@]}"; do

@@ -29,11 +29,8 @@ fn time_ms<T>(mut f: impl FnMut() -> T) -> f64 {
     times[ROUNDS / 2]
 }
 
-fn main() {
-    if std::env::args().any(|a| a == "--test" || a == "--list") {
-        return; // `cargo test --all-targets` builds benches; nothing to check here.
-    }
-    // A frame with texture everywhere: pseudo-random 12-bit counts.
+/// A frame with texture everywhere: pseudo-random 12-bit counts.
+fn random_frame() -> RawFrame {
     let mut state = 1u32;
     let angles: [Image<u16>; 4] = std::array::from_fn(|_| {
         let data = (0..1224 * 1024 * 3)
@@ -46,8 +43,19 @@ fn main() {
             .collect();
         Image::from_vec(1224, 1024, 3, data).unwrap()
     });
+    compose(SensorLayout::ColorPolarized, 12, &angles)
+}
+
+fn main() {
+    if std::env::args().any(|a| a == "--test" || a == "--list") {
+        return; // `cargo test --all-targets` builds benches; nothing to check here.
+    }
     let format = PixelFormat::BAYER_RG_POLARIZED_12P;
-    let bytes = compose(SensorLayout::ColorPolarized, 12, &angles).encode(format).unwrap();
+    // `RMVP_BENCH_FRAME` (a 12p frame file, as bench/frame.sh passes) or pseudo-random counts.
+    let bytes = match std::env::var_os("RMVP_BENCH_FRAME") {
+        Some(path) => std::fs::read(&path).expect("RMVP_BENCH_FRAME readable"),
+        None => random_frame().encode(format).unwrap(),
+    };
     let decode = || RawFrame::decode(&bytes, format, 2448, 2048, "bench").unwrap();
     let raw = decode();
     let subs = split(&raw);
