@@ -111,6 +111,20 @@ impl RawFrame {
 
     /// Decode a frame buffer as the camera sent it. `source` names the file or device in errors.
     pub fn decode(bytes: &[u8], format: PixelFormat, width: usize, height: usize, source: &str) -> Result<Self> {
+        let mut frame = Self { layout: format.family.layout(), bits: format.bits, pixels: Image::default() };
+        frame.decode_from(bytes, format, width, height, source)?;
+        Ok(frame)
+    }
+
+    /// [`RawFrame::decode`] into this frame, reusing its buffer (for streams).
+    pub fn decode_from(
+        &mut self,
+        bytes: &[u8],
+        format: PixelFormat,
+        width: usize,
+        height: usize,
+        source: &str,
+    ) -> Result<()> {
         let expected = format.frame_bytes(width, height);
         if bytes.len() < expected {
             return Err(Error::frame(
@@ -125,26 +139,27 @@ impl RawFrame {
         if width % 4 != 0 || height % 4 != 0 {
             return Err(Error::frame(source, format!("{width}x{height} is not a whole number of 4x4 mosaic tiles")));
         }
-        let n = width * height;
-        let data: Vec<u16> = match (format.bits, format.packed) {
-            (8, _) => bytes[..n].iter().map(|&b| b as u16).collect(),
-            (12, true) => unpack_12p(&bytes[..expected], n),
-            (10, true) => unpack_10p(&bytes[..expected], n),
+        self.layout = format.family.layout();
+        self.bits = format.bits;
+        self.pixels.ensure_shape(width, height, 1);
+        let out = self.pixels.data_mut();
+        let bytes = &bytes[..expected];
+        match (format.bits, format.packed) {
+            (8, _) => out.iter_mut().zip(bytes).for_each(|(o, &b)| *o = b as u16),
+            (12, true) => unpack_12p(bytes, out),
+            (10, true) => unpack_10p(bytes, out),
             (bits, _) => {
+                out.iter_mut().zip(bytes.chunks_exact(2)).for_each(|(o, b)| *o = u16::from_le_bytes([b[0], b[1]]));
                 let max = ((1u32 << bits) - 1) as u16;
-                let words: Vec<u16> =
-                    bytes[..2 * n].chunks_exact(2).map(|b| u16::from_le_bytes([b[0], b[1]])).collect();
-                if let Some(i) = words.iter().position(|&w| w > max) {
+                if let Some(i) = out.iter().position(|&w| w > max) {
                     return Err(Error::frame(
                         source,
-                        format!("pixel {i} holds {}, above the {bits}-bit range", words[i]),
+                        format!("pixel {i} holds {}, above the {bits}-bit range", out[i]),
                     ));
                 }
-                words
             }
-        };
-        let pixels = Image::from_vec(width, height, 1, data)?;
-        Ok(Self { layout: format.family.layout(), bits: format.bits, pixels })
+        }
+        Ok(())
     }
 
     /// Encode the frame in a pixel format (the camera's side of [`RawFrame::decode`]).
@@ -209,8 +224,7 @@ impl RawFrame {
 const UNPACK_GROUPS: usize = 8192;
 
 /// Unpack GenICam 12p: two pixels in three bytes, least significant bits first.
-fn unpack_12p(bytes: &[u8], n: usize) -> Vec<u16> {
-    let mut out = vec![0u16; n.div_ceil(2) * 2];
+fn unpack_12p(bytes: &[u8], out: &mut [u16]) {
     out.par_chunks_mut(2 * UNPACK_GROUPS).zip(bytes.par_chunks(3 * UNPACK_GROUPS)).for_each(|(o, b)| {
         for (pair, b) in o.chunks_exact_mut(2).zip(b.chunks_exact(3)) {
             let (b0, b1, b2) = (b[0] as u16, b[1] as u16, b[2] as u16);
@@ -218,8 +232,6 @@ fn unpack_12p(bytes: &[u8], n: usize) -> Vec<u16> {
             pair[1] = b1 >> 4 | b2 << 4;
         }
     });
-    out.truncate(n);
-    out
 }
 
 fn pack_12p(samples: &[u16]) -> Vec<u8> {
@@ -233,8 +245,7 @@ fn pack_12p(samples: &[u16]) -> Vec<u8> {
 }
 
 /// Unpack GenICam 10p: four pixels in five bytes, a little-endian bit stream.
-fn unpack_10p(bytes: &[u8], n: usize) -> Vec<u16> {
-    let mut out = vec![0u16; n.div_ceil(4) * 4];
+fn unpack_10p(bytes: &[u8], out: &mut [u16]) {
     out.par_chunks_mut(4 * UNPACK_GROUPS).zip(bytes.par_chunks(5 * UNPACK_GROUPS)).for_each(|(o, b)| {
         for (quad, b) in o.chunks_exact_mut(4).zip(b.chunks_exact(5)) {
             let bits = u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], 0, 0, 0]);
@@ -243,8 +254,6 @@ fn unpack_10p(bytes: &[u8], n: usize) -> Vec<u16> {
             }
         }
     });
-    out.truncate(n);
-    out
 }
 
 fn pack_10p(samples: &[u16]) -> Vec<u8> {
@@ -296,7 +305,9 @@ mod tests {
     fn twelve_p_follows_the_genicam_bit_order() {
         // Pixels 0xABC and 0x123 pack as BC 3A 12 (PFNC "12p": LSB first).
         assert_eq!(pack_12p(&[0xABC, 0x123]), vec![0xBC, 0x3A, 0x12]);
-        assert_eq!(unpack_12p(&[0xBC, 0x3A, 0x12], 2), vec![0xABC, 0x123]);
+        let mut out = [0u16; 2];
+        unpack_12p(&[0xBC, 0x3A, 0x12], &mut out);
+        assert_eq!(out, [0xABC, 0x123]);
     }
 
     #[test]
