@@ -262,3 +262,66 @@ impl Camera {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    fn camera() -> Camera {
+        let r = *Rotation3::from_euler_angles(0.3, -0.5, 0.2).matrix();
+        let k = Matrix3::new(900.0, 0.5, 611.5, 0.0, 905.0, 515.0, 0.0, 0.0, 1.0);
+        Camera::new(k, r, Vector3::new(0.1, -0.2, 3.0), 1224, 1024)
+    }
+
+    #[test]
+    fn project_inverts_unproject_and_rays_pass_through_pixel_centres() {
+        for distortion in [None, Some(Distortion { k1: -0.12, k2: 0.05, p1: 1e-3, p2: -2e-3, k3: 0.01 })] {
+            let cam = Camera { distortion, ..camera() };
+            let pixel = Point2::new(100.5, 900.5);
+            let p = cam.unproject(&pixel, 2.5);
+            assert!((cam.world_to_camera(&p).z - 2.5).abs() < 1e-12);
+            assert!((cam.project(&p).unwrap() - pixel).norm() < 1e-9);
+            let ray = cam.pixel_ray(100, 900);
+            assert!((ray.origin - cam.center()).norm() < 1e-12 && (ray.direction.norm() - 1.0).abs() < 1e-12);
+            assert!((cam.project(&(ray.origin + 7.0 * ray.direction)).unwrap() - pixel).norm() < 1e-9);
+        }
+        // Behind the camera there is no projection.
+        let cam = camera();
+        assert!(cam.project(&(cam.center() - 1.0 * (cam.r.transpose() * Vector3::z()))).is_none());
+    }
+
+    #[test]
+    fn distortion_inverts() {
+        let d = Distortion { k1: -0.3, k2: 0.1, p1: 2e-3, p2: -1e-3, k3: -0.02 };
+        for (x, y) in [(0.0, 0.0), (0.3, -0.2), (-0.45, 0.35)] {
+            let (xd, yd) = d.distort(x, y);
+            let (xu, yu) = d.undistort(xd, yd);
+            assert!((xu - x).abs() < 1e-10 && (yu - y).abs() < 1e-10, "({x}, {y})");
+        }
+    }
+
+    #[test]
+    fn projection_matrices_decompose_at_any_scale_and_sign() {
+        let cam = camera();
+        for scale in [1.0, 42.0, -0.01] {
+            let back = Camera::from_projection(&(cam.projection() * scale), cam.width, cam.height).unwrap();
+            assert!((back.k - cam.k).abs().max() < 1e-9, "K at scale {scale}");
+            assert!((back.r - cam.r).abs().max() < 1e-12, "R at scale {scale}");
+            assert!((back.t - cam.t).abs().max() < 1e-12, "t at scale {scale}");
+        }
+        assert!(Camera::from_projection(&Matrix3x4::zeros(), 4, 4).is_err());
+    }
+
+    #[test]
+    fn records_round_trip_and_reject_bad_cameras() {
+        let cam = camera();
+        assert_eq!(Camera::try_from(&CameraRecord::from(&cam)).unwrap(), cam);
+        let mut rec = CameraRecord::from(&cam);
+        rec.r[0][0] = 2.0;
+        assert!(Camera::try_from(&rec).unwrap_err().to_string().contains("not a rotation"));
+        let mut rec = CameraRecord::from(&cam);
+        rec.k[1][1] = -5.0;
+        assert!(Camera::try_from(&rec).unwrap_err().to_string().contains("focal lengths"));
+    }
+}
