@@ -147,6 +147,17 @@ impl Camera {
         self.ray(i as f64 + 0.5, j as f64 + 0.5)
     }
 
+    /// The Stokes reference frame `(x_r, y_r)` of light arriving along the world ray `direction`
+    /// (unit): `x_r = normalize(direction x up)` with `up` the camera's up (`-y` of the camera
+    /// frame), `y_r = direction x x_r`. For the optical axis this is exactly image +x (right) and
+    /// +y (down); off axis it follows the ray, as Mitsuba's per-ray Stokes frame does. An azimuth
+    /// in this frame is `atan2(a . y_r, a . x_r)`.
+    pub fn stokes_frame(&self, direction: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+        let up = -(self.r.transpose() * Vector3::y());
+        let x = direction.cross(&up).normalize();
+        (x, direction.cross(&x))
+    }
+
     /// The 3x4 projection matrix `P = K [R | t]` (distortion not included).
     pub fn projection(&self) -> Matrix3x4<f64> {
         let mut rt = Matrix3x4::zeros();
@@ -289,6 +300,18 @@ mod tests {
         // Behind the camera there is no projection.
         let cam = camera();
         assert!(cam.project(&(cam.center() - 1.0 * (cam.r.transpose() * Vector3::z()))).is_none());
+    }
+
+    #[test]
+    fn stokes_frame_is_the_image_frame_on_axis() {
+        let cam = camera();
+        let axis = cam.r.transpose() * Vector3::z();
+        let (x, y) = cam.stokes_frame(&axis);
+        assert!((x - cam.r.transpose() * Vector3::x()).norm() < 1e-12);
+        assert!((y - cam.r.transpose() * Vector3::y()).norm() < 1e-12);
+        let off_axis = cam.pixel_ray(0, 0).direction;
+        let (x, y) = cam.stokes_frame(&off_axis);
+        assert!(x.dot(&off_axis).abs() < 1e-12 && y.dot(&off_axis).abs() < 1e-12 && x.dot(&y).abs() < 1e-12);
     }
 
     #[test]

@@ -91,6 +91,8 @@ pub struct View {
     pub dop: Option<Image<f32>>,
     /// Ground-truth world-frame unit normals, 3 channels, 0 outside the object.
     pub normals: Option<Image<f32>>,
+    /// Ground-truth depth along the camera's z axis, one channel, 0 outside the object.
+    pub depth: Option<Image<f32>>,
     /// The polarizer images the Stokes were computed from.
     pub polarized: Option<PolarizerImages>,
     /// An 8-bit preview picture of S0.
@@ -110,6 +112,7 @@ impl View {
             aop: None,
             dop: None,
             normals: None,
+            depth: None,
             polarized: None,
             preview: None,
         }
@@ -150,6 +153,9 @@ impl View {
         }
         if let Some(d) = &self.dop {
             check("DoP", d.size())?;
+        }
+        if let Some(d) = &self.depth {
+            check("depth map", d.size())?;
         }
         if let Some(p) = &self.polarized {
             for (image, deg) in p.images.iter().zip(polarization::POLARIZER_ANGLES_DEG) {

@@ -25,6 +25,7 @@ fn contents(view: &View) -> Vec<&'static str> {
         (view.polarized.is_some(), "polarizers"),
         (view.preview.is_some(), "preview"),
         (view.normals.is_some(), "normals"),
+        (view.depth.is_some(), "depth"),
     ]
     .into_iter()
     .filter_map(|(present, name)| present.then_some(name))

@@ -6,6 +6,7 @@
 //! views/<name>/mask.png            8-bit mask
 //! views/<name>/aop.exr dop.exr     AoP (radians, channel "AoP"), DoP (channel "DoP")
 //! views/<name>/normal.exr          world-frame ground-truth normals (N.X N.Y N.Z)
+//! views/<name>/depth.exr           ground-truth z-depth (Z)
 //! views/<name>/polarizer_000.png   16-bit polarizer images (scale in the manifest), 045, 090, 135
 //! views/<name>/preview.png         8-bit preview
 //! mesh.ply env.exr                 ground-truth mesh and environment map
@@ -87,6 +88,9 @@ pub struct ViewFiles {
     /// Normal EXR.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normal: Option<String>,
+    /// Depth EXR (channel Z).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub depth: Option<String>,
     /// Polarizer PNGs at 0, 45, 90, 135 degrees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub polarizers: Option<[String; 4]>,
@@ -152,6 +156,9 @@ fn read_view(dir: &Path, record: &ViewRecord) -> Result<View> {
     }
     if let Some(file) = &f.normal {
         view.normals = Some(exr::read_exr(&dir.join(file), &["N.X", "N.Y", "N.Z"])?);
+    }
+    if let Some(file) = &f.depth {
+        view.depth = Some(exr::read_exr(&dir.join(file), &["Z"])?);
     }
     if let Some(files) = &f.polarizers {
         let [a, b, c, d] = files.clone().map(|file| png::read_png_u16(&dir.join(file)));
@@ -240,6 +247,9 @@ fn write_view(dir: &Path, view: &View) -> Result<ViewRecord> {
     }
     if let Some(n) = &view.normals {
         files.normal = put("normal.exr", &|p| exr::write_exr(p, n, &["N.X", "N.Y", "N.Z"]))?;
+    }
+    if let Some(d) = &view.depth {
+        files.depth = put("depth.exr", &|p| exr::write_exr(p, d, &["Z"]))?;
     }
     if let Some(pol) = &view.polarized {
         let mut names = Vec::with_capacity(4);

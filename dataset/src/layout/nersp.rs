@@ -11,6 +11,7 @@
 //! gt/cameras.json              every view (train and eval) with K, R, t, size; provenance
 //! gt/mask/<name>.png           mask of every view
 //! gt/normal/<name>.exr         world-frame normals (N.X N.Y N.Z)
+//! gt/depth/<name>.exr          z-depth along the camera axis (Z)
 //! gt/mesh.ply gt/env.exr       ground-truth mesh and environment map
 //! ```
 
@@ -218,6 +219,10 @@ fn read_ground_truth_images(dir: &Path, view: &mut View) -> Result<()> {
     if normal_path.is_file() {
         view.normals = Some(exr::read_exr(&normal_path, &NORMAL_CHANNELS)?);
     }
+    let depth_path = dir.join("gt/depth").join(format!("{}.exr", view.name));
+    if depth_path.is_file() {
+        view.depth = Some(exr::read_exr(&depth_path, &["Z"])?);
+    }
     Ok(())
 }
 
@@ -231,9 +236,10 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
     }
     train.par_iter().enumerate().try_for_each(|(i, view)| write_train_view(dir, i, view))?;
 
-    let has_ground_truth = scene.views.iter().any(|v| v.split == Split::Eval || v.normals.is_some())
-        || scene.mesh.is_some()
-        || scene.env_map.is_some();
+    let has_ground_truth =
+        scene.views.iter().any(|v| v.split == Split::Eval || v.normals.is_some() || v.depth.is_some())
+            || scene.mesh.is_some()
+            || scene.env_map.is_some();
     if has_ground_truth {
         scene.views.par_iter().try_for_each(|view| {
             if let Some(mask) = &view.mask {
@@ -241,6 +247,9 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
             }
             if let Some(normals) = &view.normals {
                 exr::write_exr(&dir.join("gt/normal").join(format!("{}.exr", view.name)), normals, &NORMAL_CHANNELS)?;
+            }
+            if let Some(depth) = &view.depth {
+                exr::write_exr(&dir.join("gt/depth").join(format!("{}.exr", view.name)), depth, &["Z"])?;
             }
             Ok::<_, Error>(())
         })?;
