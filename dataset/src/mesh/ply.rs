@@ -88,8 +88,13 @@ fn list_indices(p: &Property) -> Option<Vec<i64>> {
 /// every other scalar vertex property is kept; polygons are split into triangle fans.
 pub fn read_ply(path: &Path) -> Result<Mesh> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    read_ply_from(&mut BufReader::new(file), path)
+}
+
+/// [`read_ply`] from any reader; `path` names the source in errors.
+pub fn read_ply_from(reader: &mut impl std::io::BufRead, path: &Path) -> Result<Mesh> {
     let ply = Parser::<DefaultElement>::new()
-        .read_ply(&mut BufReader::new(file))
+        .read_ply(reader)
         .map_err(|e| Error::format(path, format!("not a readable PLY file (truncated or malformed): {e}")))?;
     let def = ply.header.elements.get("vertex").ok_or_else(|| Error::format(path, "no vertex element"))?;
     let vertices = ply.payload.get("vertex").map(Vec::as_slice).unwrap_or_default();

@@ -1,0 +1,176 @@
+//! Rendering views: per pixel, jittered camera rays; per hit, environment light by multiple
+//! importance sampling of the environment and the pBRDF, with shadow rays (self-shadowing);
+//! direct light only. Every pixel has its own random stream, so images are deterministic.
+
+use crate::envmap::EnvMap;
+use crate::math::Vec3;
+use crate::object::{Object, SurfacePoint};
+use crate::pbrdf::{ShadingFrame, StokesRgb};
+use crate::rng::Rng;
+use rayon::prelude::*;
+use rmvp_dataset::polarization::{intensity, POLARIZER_ANGLES_DEG};
+use rmvp_dataset::{visualize, Camera, Image, PolarizerImages, Split, Stokes, View};
+
+/// Sampling settings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Settings {
+    /// Samples per pixel (each: one camera ray, one environment sample, one BRDF sample).
+    pub spp: u32,
+    /// Seed of all random streams.
+    pub seed: u64,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Self { spp: 64, seed: 0 }
+    }
+}
+
+/// Everything rendered for one camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderedView {
+    /// Linear Stokes (RGB) in each pixel's Stokes frame.
+    pub stokes: Stokes,
+    /// 255 where at least half of the pixel's samples hit the object.
+    pub mask: Image<u8>,
+    /// z-depth of the pixel-centre ray's hit; 0 on background.
+    pub depth: Image<f32>,
+    /// World-frame shading normal at the pixel-centre hit; 0 on background.
+    pub normals: Image<f32>,
+}
+
+/// Render one view. `view` selects the random streams (use the view's index).
+pub fn render_view(object: &Object, env: &EnvMap, camera: &Camera, settings: Settings, view: u32) -> RenderedView {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let mut s = [Image::new(w, h, 3), Image::new(w, h, 3), Image::new(w, h, 3)];
+    let mut mask = Image::new(w, h, 1);
+    let mut depth = Image::new(w, h, 1);
+    let mut normals = Image::new(w, h, 3);
+    let [s0, s1, s2] = &mut s;
+    let r_row3 = |m: &nalgebra::Matrix3<f64>, k: usize| Vec3::new(m[(k, 0)] as f32, m[(k, 1)] as f32, m[(k, 2)] as f32);
+    let camera_z = r_row3(&camera.r, 2);
+    let camera_center = Vec3::from_f64(&camera.center().coords);
+    s0.data_mut()
+        .par_chunks_mut(3 * w)
+        .zip(s1.data_mut().par_chunks_mut(3 * w))
+        .zip(s2.data_mut().par_chunks_mut(3 * w))
+        .zip(mask.data_mut().par_chunks_mut(w))
+        .zip(depth.data_mut().par_chunks_mut(w))
+        .zip(normals.data_mut().par_chunks_mut(3 * w))
+        .enumerate()
+        .for_each(|(j, (((((r0, r1), r2), m), d), n))| {
+            for i in 0..w {
+                let mut rng = Rng::for_pixel(settings.seed, view, (j * w + i) as u64);
+                let centre = camera.pixel_ray(i as u32, j as u32);
+                if let Some(hit) = object.intersect(camera_center, Vec3::from_f64(&centre.direction)) {
+                    d[i] = (hit.p - camera_center).dot(camera_z);
+                    let normal = hit.n;
+                    n[3 * i..3 * i + 3].copy_from_slice(&[normal.x, normal.y, normal.z]);
+                }
+                let mut acc = [[0.0f32; 3]; 3];
+                let mut hits = 0;
+                for _ in 0..settings.spp {
+                    let ray = camera.ray(i as f64 + rng.next_f32() as f64, j as f64 + rng.next_f32() as f64);
+                    let dir = Vec3::from_f64(&ray.direction);
+                    match object.intersect(camera_center, dir) {
+                        Some(hit) => {
+                            hits += 1;
+                            let (x, y) = camera.stokes_frame(&ray.direction);
+                            let frame =
+                                ShadingFrame { n: hit.n, v: -dir, x: Vec3::from_f64(&x), y: Vec3::from_f64(&y) };
+                            let value = shade(object, env, &hit, &frame, &mut rng);
+                            for k in 0..3 {
+                                for c in 0..3 {
+                                    acc[k][c] += value[k][c];
+                                }
+                            }
+                        }
+                        None => {
+                            let background = env.eval(dir);
+                            (0..3).for_each(|c| acc[0][c] += background[c]);
+                        }
+                    }
+                }
+                let scale = 1.0 / settings.spp as f32;
+                for c in 0..3 {
+                    r0[3 * i + c] = acc[0][c] * scale;
+                    r1[3 * i + c] = acc[1][c] * scale;
+                    r2[3 * i + c] = acc[2][c] * scale;
+                }
+                m[i] = if 2 * hits >= settings.spp { 255 } else { 0 };
+            }
+        });
+    let [s0, s1, s2] = s;
+    RenderedView { stokes: Stokes { s0, s1, s2 }, mask, depth, normals }
+}
+
+/// Radiance towards the viewer at a surface point: one environment sample and one BRDF sample,
+/// combined by the power heuristic.
+fn shade(object: &Object, env: &EnvMap, hit: &SurfacePoint, frame: &ShadingFrame, rng: &mut Rng) -> StokesRgb {
+    let mut out = [[0.0f32; 3]; 3];
+    let surface = &hit.surface;
+    let eps = 1e-4 * (1.0 + hit.p.length());
+    let mut add = |l: Vec3, weight_over_pdf: f32| {
+        let f = surface.eval(frame, l);
+        if f[0].iter().all(|&v| v <= 0.0) {
+            return;
+        }
+        let origin = hit.p + hit.ng * if hit.ng.dot(l) >= 0.0 { eps } else { -eps };
+        if object.occluded(origin, l) {
+            return;
+        }
+        let radiance = env.eval(l);
+        for k in 0..3 {
+            for c in 0..3 {
+                out[k][c] += f[k][c] * radiance[c] * weight_over_pdf;
+            }
+        }
+    };
+    let (l, pdf_light) = env.sample(rng.next_f32(), rng.next_f32());
+    if pdf_light > 0.0 {
+        let pdf_brdf = surface.pdf(frame, l);
+        add(l, pdf_light / (pdf_light * pdf_light + pdf_brdf * pdf_brdf));
+    }
+    let (a, b, c) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+    if let Some(l) = surface.sample(frame, a, b, c) {
+        let pdf_brdf = surface.pdf(frame, l);
+        if pdf_brdf > 0.0 {
+            let pdf_light = env.pdf(l);
+            add(l, pdf_brdf / (pdf_brdf * pdf_brdf + pdf_light * pdf_light));
+        }
+    }
+    out
+}
+
+impl RenderedView {
+    /// The images behind the four polarizers, as 16-bit counts of `intensity * scale`.
+    pub fn polarizer_images(&self, scale: f64) -> PolarizerImages {
+        let s = &self.stokes;
+        let images = POLARIZER_ANGLES_DEG.map(|deg| {
+            let theta = (deg as f32).to_radians();
+            let data = (0..s.s0.data().len())
+                .map(|k| {
+                    let i = intensity(s.s0.data()[k], s.s1.data()[k], s.s2.data()[k], theta) as f64 * scale;
+                    (i.clamp(0.0, 1.0) * 65535.0).round() as u16
+                })
+                .collect();
+            Image::from_vec(s.s0.width(), s.s0.height(), 3, data).expect("sized")
+        });
+        PolarizerImages { scale, images }
+    }
+
+    /// A dataset view holding everything rendered: Stokes, mask, AoP, DoP, ground-truth normals
+    /// and depth, polarizer images at `polarizer_scale`, and a preview.
+    pub fn into_view(self, name: impl Into<String>, split: Split, camera: Camera, polarizer_scale: f64) -> View {
+        let mut view = View::new(name, split, camera);
+        view.polarized = Some(self.polarizer_images(polarizer_scale));
+        view.aop = Some(self.stokes.aop());
+        view.dop = Some(self.stokes.dop());
+        view.preview = Some(visualize::preview(&self.stokes.s0));
+        view.mask = Some(self.mask);
+        view.depth = Some(self.depth);
+        view.normals = Some(self.normals);
+        view.stokes = Some(self.stokes);
+        view
+    }
+}
