@@ -27,6 +27,8 @@ enum Command {
     Info(commands::info::Args),
     /// Convert a scene between the NeRSP and rmvp layouts, without loss.
     Convert(commands::convert::Args),
+    /// Render a synthetic polarized capture of a mesh (scene folders and optional raw frames).
+    Simulate(commands::simulate::Args),
 }
 
 fn main() {
@@ -40,6 +42,7 @@ fn main() {
         Command::Stokes(args) => commands::stokes::run(args),
         Command::Info(args) => commands::info::run(args),
         Command::Convert(args) => commands::convert::run(args),
+        Command::Simulate(args) => commands::simulate::run(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -68,31 +68,9 @@ impl EnvMap {
         Self::new(&Image::from_vec(2, 1, 3, [rgb, rgb].concat()).expect("2x1")).expect("finite")
     }
 
-    /// The built-in studio-like environment: a bright sky gradient over a darker floor, a sun
-    /// and two soft area lights, so that reflective objects show highlights. 256x128.
+    /// The built-in environment ([`procedural_image`]).
     pub fn procedural() -> Self {
-        let (w, h) = (256usize, 128usize);
-        let mut data = Vec::with_capacity(w * h * 3);
-        let sun = direction(0.15, 0.25);
-        let panels = [direction(0.6, 0.35), direction(0.85, 0.45)];
-        for j in 0..h {
-            for i in 0..w {
-                let d = direction((i as f32 + 0.5) / w as f32, (j as f32 + 0.5) / h as f32);
-                let sky =
-                    if d.y > 0.0 { [0.55 + 0.35 * d.y, 0.65 + 0.3 * d.y, 0.8 + 0.2 * d.y] } else { [0.18, 0.16, 0.14] };
-                let mut rgb = sky;
-                if d.dot(sun) > 0.995 {
-                    rgb = [40.0, 36.0, 30.0];
-                }
-                for p in &panels {
-                    if d.dot(*p) > 0.97 {
-                        rgb = [6.0, 6.0, 6.5];
-                    }
-                }
-                data.extend(rgb);
-            }
-        }
-        Self::new(&Image::from_vec(w, h, 3, data).expect("sized")).expect("finite")
+        Self::new(&procedural_image()).expect("finite")
     }
 
     /// Radiance arriving from direction `d` (unit, pointing away from the scene).
@@ -132,6 +110,33 @@ impl EnvMap {
         let d = direction((i as f32 + du) / self.width as f32, (j as f32 + dv) / self.height as f32);
         (d, self.pdf(d))
     }
+}
+
+/// The built-in studio-like environment, 256x128 lat-long: a bright sky gradient over a darker
+/// floor, a sun and two soft area lights, so that reflective objects show highlights.
+pub fn procedural_image() -> Image<f32> {
+    let (w, h) = (256usize, 128usize);
+    let mut data = Vec::with_capacity(w * h * 3);
+    let sun = direction(0.15, 0.25);
+    let panels = [direction(0.6, 0.35), direction(0.85, 0.45)];
+    for j in 0..h {
+        for i in 0..w {
+            let d = direction((i as f32 + 0.5) / w as f32, (j as f32 + 0.5) / h as f32);
+            let sky =
+                if d.y > 0.0 { [0.55 + 0.35 * d.y, 0.65 + 0.3 * d.y, 0.8 + 0.2 * d.y] } else { [0.18, 0.16, 0.14] };
+            let mut rgb = sky;
+            if d.dot(sun) > 0.995 {
+                rgb = [40.0, 36.0, 30.0];
+            }
+            for p in &panels {
+                if d.dot(*p) > 0.97 {
+                    rgb = [6.0, 6.0, 6.5];
+                }
+            }
+            data.extend(rgb);
+        }
+    }
+    Image::from_vec(w, h, 3, data).expect("sized")
 }
 
 /// Map coordinates of a direction.

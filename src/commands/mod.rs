@@ -4,6 +4,7 @@ pub mod convert;
 pub mod demo;
 pub mod demosaic;
 pub mod info;
+pub mod simulate;
 pub mod stokes;
 
 use indicatif::{ProgressBar, ProgressStyle};
