@@ -1,0 +1,274 @@
+//! The renderer on scenes with analytic answers: a sphere under uniform light.
+
+use nalgebra::Vector3;
+use rmvp_dataset::polarization::diffuse_dop;
+use rmvp_dataset::{Camera, Mesh};
+use rmvp_render::pbrdf::{fresnel_dielectric, Interface, Lobes};
+use rmvp_render::rig::{look_at, rig_intrinsics};
+use rmvp_render::{render_view, EnvMap, Object, RenderedView, Settings};
+use std::f64::consts::PI;
+
+/// A unit icosphere subdivided `levels` times, with exact vertex normals.
+fn icosphere(levels: usize) -> Mesh {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v: Vec<[f64; 3]> = vec![
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ];
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    let unit = |p: [f64; 3]| {
+        let n = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        [p[0] / n, p[1] / n, p[2] / n]
+    };
+    v.iter_mut().for_each(|p| *p = unit(*p));
+    for _ in 0..levels {
+        let mut cache = std::collections::HashMap::new();
+        let mut mid = |a: u32, b: u32, v: &mut Vec<[f64; 3]>| {
+            *cache.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let (p, q) = (v[a as usize], v[b as usize]);
+                v.push(unit([(p[0] + q[0]) / 2.0, (p[1] + q[1]) / 2.0, (p[2] + q[2]) / 2.0]));
+                v.len() as u32 - 1
+            })
+        };
+        f = f
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let (ab, bc, ca) = (mid(a, b, &mut v), mid(b, c, &mut v), mid(c, a, &mut v));
+                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    let positions: Vec<[f32; 3]> = v.iter().map(|p| p.map(|x| x as f32)).collect();
+    Mesh { normals: Some(positions.clone()), positions, faces: f, vertex_properties: Vec::new() }
+}
+
+const SIZE: u32 = 96;
+
+fn camera() -> Camera {
+    look_at(rig_intrinsics(SIZE, SIZE), Vector3::new(0.6, 0.8, 4.0), Vector3::zeros(), Vector3::y(), SIZE, SIZE)
+}
+
+fn render(lobes: Lobes, albedo: f32, alpha: f32, spp: u32) -> (Camera, RenderedView) {
+    let mut mesh = icosphere(5);
+    let n = mesh.positions.len();
+    for (name, value) in [("red", albedo), ("green", albedo), ("blue", albedo), ("roughness", alpha)] {
+        mesh.vertex_properties.push(rmvp_dataset::mesh::VertexProperty {
+            name: name.into(),
+            kind: rmvp_dataset::mesh::ScalarKind::F32,
+            values: vec![value as f64; n],
+        });
+    }
+    let object = Object::new(&mesh, Interface::Dielectric(1.5), lobes).unwrap();
+    let cam = camera();
+    let view = render_view(&object, &EnvMap::uniform([1.0; 3]), &cam, Settings { spp, seed: 1 }, 0);
+    (cam, view)
+}
+
+/// The analytic hit of the pixel-centre ray with the unit sphere: (point, depth).
+fn sphere_hit(cam: &Camera, i: u32, j: u32) -> Option<(Vector3<f64>, f64)> {
+    let ray = cam.pixel_ray(i, j);
+    let o = ray.origin.coords;
+    let b = o.dot(&ray.direction);
+    let disc = b * b - (o.norm_squared() - 1.0);
+    (disc >= 0.0).then(|| {
+        let p = o + ray.direction * (-b - disc.sqrt());
+        (p, cam.world_to_camera(&p.into()).z)
+    })
+}
+
+#[test]
+fn masks_depths_and_normals_match_the_sphere() {
+    let (cam, view) = render(Lobes::Plastic, 0.5, 0.1, 8);
+    let (mut inside, mut worst_depth, mut worst_normal_deg, mut mask_errors) = (0, 0.0f64, 0.0f64, 0);
+    for j in 0..SIZE {
+        for i in 0..SIZE {
+            let k = (j * SIZE + i) as usize;
+            let analytic = sphere_hit(&cam, i, j);
+            let masked = view.mask.data()[k] > 0;
+            if masked != analytic.is_some() {
+                // Only silhouette pixels, partly covered, may differ.
+                let near_edge = (-1i32..=1).any(|dj| {
+                    (-1i32..=1).any(|di| {
+                        sphere_hit(&cam, (i as i32 + di) as u32, (j as i32 + dj) as u32).is_some() != analytic.is_some()
+                    })
+                });
+                assert!(near_edge, "mask differs away from the silhouette at ({i}, {j})");
+                mask_errors += 1;
+            }
+            if let (Some((p, z)), d) = (analytic, view.depth.data()[k]) {
+                if d > 0.0 {
+                    inside += 1;
+                    // The facets sit within their sagitta of the sphere along the normal; a
+                    // grazing ray sees that as a depth error of sagitta / cos(theta).
+                    let cos_view = p.dot(&-cam.pixel_ray(i, j).direction);
+                    worst_depth = worst_depth.max((d as f64 - z).abs() * cos_view);
+                    let n = &view.normals.data()[3 * k..3 * k + 3];
+                    let cos = (n[0] as f64 * p.x + n[1] as f64 * p.y + n[2] as f64 * p.z).clamp(-1.0, 1.0);
+                    worst_normal_deg = worst_normal_deg.max(cos.acos().to_degrees());
+                }
+            }
+        }
+    }
+    assert!(inside > 1000, "{inside}");
+    assert!(mask_errors < 60, "{mask_errors} silhouette pixels differ");
+    // A level-5 icosphere deviates from the sphere by under 4e-4 (the sagitta of its faces).
+    assert!(worst_depth < 4e-4, "depth error along the normal {worst_depth}");
+    assert!(worst_normal_deg < 0.5, "normal error {worst_normal_deg} degrees");
+}
+
+/// Per object pixel: (normal azimuth in the pixel's Stokes frame, view zenith angle, AoP, DoP).
+fn polarization_samples(cam: &Camera, view: &RenderedView) -> Vec<(f64, f64, f64, f64)> {
+    let aop = view.stokes.aop();
+    let dop = view.stokes.dop();
+    let mut out = Vec::new();
+    for j in 0..SIZE {
+        for i in 0..SIZE {
+            let k = (j * SIZE + i) as usize;
+            let (Some((p, _)), true) = (sphere_hit(cam, i, j), view.mask.data()[k] > 0) else { continue };
+            // Stay off the silhouette, where pixels mix normals.
+            let all_inside = (-1i32..=1).all(|dj| {
+                (-1i32..=1).all(|di| sphere_hit(cam, (i as i32 + di) as u32, (j as i32 + dj) as u32).is_some())
+            });
+            if !all_inside {
+                continue;
+            }
+            let d = cam.pixel_ray(i, j).direction;
+            let (x, y) = cam.stokes_frame(&d);
+            let azimuth = p.dot(&y).atan2(p.dot(&x));
+            let zenith = p.dot(&-d).clamp(-1.0, 1.0).acos();
+            out.push((azimuth, zenith, aop.data()[k] as f64, dop.data()[k] as f64));
+        }
+    }
+    out
+}
+
+fn angle_difference_deg(a: f64, b: f64) -> f64 {
+    let d = (a - b).rem_euclid(PI);
+    d.min(PI - d).to_degrees()
+}
+
+#[test]
+fn diffuse_light_is_polarized_along_the_normal_azimuth_by_fresnel_transmission() {
+    let (cam, view) = render(Lobes::Diffuse, 0.8, 0.1, 16);
+    let samples = polarization_samples(&cam, &view);
+    let mut checked = 0;
+    for (azimuth, zenith, aop, dop) in samples {
+        let expected = diffuse_dop(zenith as f32, 1.5) as f64;
+        assert!((dop - expected).abs() < 0.01 + 0.05 * expected, "zenith {zenith}: DoP {dop} vs {expected}");
+        if expected > 0.02 {
+            assert!(angle_difference_deg(aop, azimuth) < 2.0, "AoP {aop} vs azimuth {azimuth}");
+            checked += 1;
+        }
+    }
+    assert!(checked > 300, "{checked}");
+}
+
+#[test]
+fn specular_light_is_polarized_across_the_normal_azimuth_by_fresnel_reflection() {
+    let (cam, view) = render(Lobes::Specular, 0.0, 0.01, 16);
+    let samples = polarization_samples(&cam, &view);
+    let (mut aop_errors, mut dop_errors) = (Vec::new(), Vec::new());
+    for (azimuth, zenith, aop, dop) in samples {
+        let (rs, rp) = fresnel_dielectric(zenith.cos() as f32, 1.5);
+        let expected = ((rs - rp) / (rs + rp)) as f64;
+        if zenith.to_degrees() < 75.0 {
+            dop_errors.push((dop - expected).abs());
+        }
+        if expected > 0.1 {
+            aop_errors.push(angle_difference_deg(aop, azimuth + PI / 2.0));
+        }
+    }
+    // Each sample's half vector scatters around the normal (roughness 0.01), so per-pixel AoP
+    // and DoP carry a little Monte Carlo noise.
+    let quantile = |v: &mut Vec<f64>, q: f64| {
+        v.sort_by(f64::total_cmp);
+        v[((v.len() - 1) as f64 * q) as usize]
+    };
+    assert!(aop_errors.len() > 300, "{}", aop_errors.len());
+    let (median, p95) = (quantile(&mut aop_errors, 0.5), quantile(&mut aop_errors, 0.95));
+    assert!(median < 0.5 && p95 < 3.0, "AoP - (azimuth + 90 deg): median {median}, p95 {p95}");
+    let (median, p95) = (quantile(&mut dop_errors, 0.5), quantile(&mut dop_errors, 0.95));
+    assert!(median < 0.01 && p95 < 0.05, "DoP error: median {median}, p95 {p95}");
+}
+
+#[test]
+fn white_furnace_conserves_energy() {
+    // A white Lambertian sphere in a uniform unit environment reflects exactly 1.
+    let (_, view) = render(Lobes::Lambertian, 1.0, 0.1, 16);
+    let object: Vec<f32> = view
+        .stokes
+        .s0
+        .data()
+        .chunks_exact(3)
+        .zip(view.mask.data())
+        .filter(|(_, &m)| m > 0)
+        .map(|(p, _)| p[1])
+        .collect();
+    let mean = object.iter().sum::<f32>() / object.len() as f32;
+    assert!((mean - 1.0).abs() < 0.01, "mean {mean}");
+    // Per pixel, Monte Carlo noise at 64 samples only.
+    let (_, view) = render(Lobes::Lambertian, 1.0, 0.1, 64);
+    let s0 = view.stokes.s0.data();
+    assert!(view
+        .mask
+        .data()
+        .iter()
+        .enumerate()
+        .filter(|(_, &m)| m > 0)
+        .all(|(k, _)| (s0[3 * k + 1] - 1.0).abs() < 0.15));
+    // The white plastic loses to Fresnel what its diffuse lobe cannot return: never above 1.
+    let (_, plastic) = render(Lobes::Plastic, 1.0, 0.1, 16);
+    let mean: f32 = plastic
+        .stokes
+        .s0
+        .data()
+        .chunks_exact(3)
+        .zip(plastic.mask.data())
+        .filter(|(_, &m)| m > 0)
+        .map(|(p, _)| p[1])
+        .sum::<f32>()
+        / plastic.mask.data().iter().filter(|&&m| m > 0).count() as f32;
+    assert!(mean < 1.0 && mean > 0.8, "plastic mean {mean}");
+}
+
+#[test]
+fn same_seed_same_bytes_whatever_the_threads() {
+    let (_, a) = render(Lobes::Plastic, 0.5, 0.1, 4);
+    let b = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| render(Lobes::Plastic, 0.5, 0.1, 4).1);
+    assert_eq!(a, b);
+}
