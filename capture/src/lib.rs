@@ -1,7 +1,8 @@
 //! From raw polarization-camera frames to Stokes images: pixel-format decoding ([`raw`]), the
 //! sensor's polarizer/colour mosaic ([`mosaic`]), OpenCV demosaicing ([`demosaic`]), Stokes
-//! estimation ([`stokes`]), corrections ([`correction`]) and the whole per-frame chain
-//! ([`pipeline`]).
+//! estimation ([`stokes`]), corrections ([`correction`]), the whole per-frame chain
+//! ([`pipeline`]) and, the other way round, a model of the sensor that turns rendered light
+//! into raw frames ([`sensor`]).
 //!
 //! Target sensor: Sony IMX250MYR (FLIR Blackfly S BFS-U3-51S5PC-C), 2448x2048, each 2x2 cell of
 //! polarizers `[90 45; 135 0]` under one colour of an RGGB Bayer pattern; and its mono sibling
@@ -13,6 +14,7 @@ pub mod error;
 pub mod mosaic;
 pub mod pipeline;
 pub mod raw;
+pub mod sensor;
 pub mod stokes;
 
 pub use error::{Error, Result};

@@ -11,9 +11,10 @@ use rayon::prelude::*;
 use rmvp_dataset::Image;
 
 /// Which polarization sensor produced a frame.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum SensorLayout {
     /// IMX250MYR: polarizer cells under an RGGB Bayer pattern.
+    #[default]
     ColorPolarized,
     /// IMX250MZR: polarizer cells only.
     MonoPolarized,

@@ -80,6 +80,15 @@ pub fn smith_g1(cos: f32, alpha: f32) -> f32 {
 /// Linear Stokes `(S0, S1, S2)` per colour channel.
 pub type StokesRgb = [[f32; 3]; 3];
 
+/// Add `weight[c] * polarization[k]` to Stokes component `k` of channel `c`.
+fn add_stokes(s: &mut StokesRgb, weight: [f32; 3], polarization: [f32; 3]) {
+    for (row, p) in s.iter_mut().zip(polarization) {
+        for (v, w) in row.iter_mut().zip(weight) {
+            *v += w * p;
+        }
+    }
+}
+
 /// Surface properties at a shading point.
 #[derive(Clone, Copy, Debug)]
 pub struct Surface {
@@ -155,9 +164,7 @@ impl Surface {
         }
         if self.has_diffuse() {
             if self.lobes == Lobes::Lambertian {
-                for c in 0..3 {
-                    s[0][c] += self.albedo[c] * cos_l / PI;
-                }
+                add_stokes(&mut s, self.albedo.map(|a| a * cos_l / PI), [1.0, 0.0, 0.0]);
             } else {
                 let (rs_l, rp_l) = self.reflectance(cos_l);
                 let (rs_v, rp_v) = self.reflectance(cos_v);
@@ -165,12 +172,7 @@ impl Surface {
                 let (t_plus, t_minus) = (0.5 * (t_s + t_p), 0.5 * (t_p - t_s));
                 let (c2, s2) = f.double_azimuth(f.n);
                 let k = cos_l / PI * (1.0 - 0.5 * (rs_l + rp_l));
-                for c in 0..3 {
-                    let base = self.albedo[c] * k;
-                    s[0][c] += base * t_plus;
-                    s[1][c] += base * t_minus * c2;
-                    s[2][c] += base * t_minus * s2;
-                }
+                add_stokes(&mut s, self.albedo.map(|a| a * k), [t_plus, t_minus * c2, t_minus * s2]);
             }
         }
         if self.has_specular() {
@@ -182,11 +184,7 @@ impl Surface {
                 let (rs, rp) = self.reflectance(l.dot(h));
                 let (r_plus, r_minus) = (0.5 * (rs + rp), 0.5 * (rs - rp));
                 let (c2, s2) = f.double_azimuth(h);
-                for c in 0..3 {
-                    s[0][c] += value * r_plus;
-                    s[1][c] -= value * r_minus * c2;
-                    s[2][c] -= value * r_minus * s2;
-                }
+                add_stokes(&mut s, [value; 3], [r_plus, -r_minus * c2, -r_minus * s2]);
             }
         }
         s

@@ -62,14 +62,16 @@ pub fn run(args: Args) -> Result<()> {
         let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "frame".into());
         processed.write(&args.output, &stem)?;
         let saturated = processed.estimate.saturated.data().iter().filter(|&&n| n > 0).count();
-        bar.println(format!(
-            "{}: {}x{} x4, {} pixels with saturated angles, median DoP {:.3}",
-            path.display(),
-            processed.aop.width(),
-            processed.aop.height(),
-            saturated,
-            rmvp_dataset::visualize::quantile(processed.dop.data(), 0.5)
-        ));
+        bar.suspend(|| {
+            println!(
+                "{}: {}x{} x4, {} pixels with saturated angles, median DoP {:.3}",
+                path.display(),
+                processed.aop.width(),
+                processed.aop.height(),
+                saturated,
+                rmvp_dataset::visualize::quantile(processed.dop.data(), 0.5)
+            )
+        });
         bar.inc(1);
     }
     bar.finish_with_message(format!("wrote {}", args.output.display()));

@@ -1,7 +1,9 @@
 //! `rmvp simulate`: render a synthetic polarized capture of a mesh.
 
 use anyhow::{bail, Context, Result};
-use rmvp_dataset::io::{exr, png};
+use rmvp_capture::sensor::SensorModel;
+use rmvp_capture::PixelFormat;
+use rmvp_dataset::io::{exr, png, write_bytes_atomically};
 use rmvp_dataset::layout::{write_scene, Layout};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, preview, quantile};
 use rmvp_dataset::{Image, Mesh, Scene, Split};
@@ -149,6 +151,9 @@ pub fn simulate(args: &Args) -> Result<Scene> {
     for (layout, folder) in layouts {
         write_scene(&scene, &args.output.join(folder), *layout)?;
     }
+    if args.raw {
+        write_raw_frames(&scene, &args.output.join("raw"), args.seed)?;
+    }
     let sheet = contact_sheet(&tiles.iter().map(|t| shrink_to(t, 256)).collect::<Vec<_>>(), 3);
     png::write_png_u8(&args.output.join("contact_sheet.png"), &sheet)?;
     println!(
@@ -159,6 +164,35 @@ pub fn simulate(args: &Args) -> Result<Scene> {
     );
     println!("  contact_sheet.png: per view S0 | AoP (hue) x DoP | normals");
     Ok(scene)
+}
+
+/// Expose every view's Stokes on the sensor model (exposure chosen so that the brightest
+/// object pixels reach 80 % of full scale) and write `DIR/<view>.raw` (BayerRGPolarized12p,
+/// twice the image size), `DIR/dark.raw` (a black frame) and `DIR/sensor.json`.
+fn write_raw_frames(scene: &Scene, dir: &std::path::Path, seed: u64) -> Result<()> {
+    let mut model = SensorModel::default();
+    let polarized = scene.views.iter().filter_map(|v| v.polarized.as_ref()).next().context("no rendered view")?;
+    model.exposure = 0.8 * polarized.scale as f32;
+    let format = PixelFormat::BAYER_RG_POLARIZED_12P;
+    let bar = super::progress(scene.views.len() as u64, "raw");
+    for (i, view) in scene.views.iter().enumerate() {
+        let stokes = view.stokes.as_ref().context("rendered view without Stokes")?;
+        model.expose(stokes, seed, i as u32).write(&dir.join(format!("{}.raw", view.name)), format)?;
+        bar.inc(1);
+    }
+    let (w, h) = (scene.views[0].camera.width as usize, scene.views[0].camera.height as usize);
+    model.dark_frame(w, h, seed).write(&dir.join("dark.raw"), format)?;
+    let description = json!({
+        "pixel_format": format.name(),
+        "width": 2 * w,
+        "height": 2 * h,
+        "model": model,
+        "stokes_gain": model.stokes_gain(),
+        "note": "processed Stokes (dark frame subtracted) / stokes_gain = rendered Stokes",
+    });
+    write_bytes_atomically(&dir.join("sensor.json"), serde_json::to_string_pretty(&description)?.as_bytes())?;
+    bar.finish_with_message(format!("raw frames in {}", dir.display()));
+    Ok(())
 }
 
 /// Shrink a picture by an integer factor so that its width is at most `max_width`.
