@@ -9,8 +9,8 @@ const BINS: usize = 16;
 
 #[derive(Clone, Copy, Debug)]
 struct Node {
-    min: Vec3,
-    max: Vec3,
+    /// Bounds as `[min, max]`.
+    bounds: [Vec3; 2],
     /// First triangle for leaves, right child for interior nodes (left child is the next node).
     start: u32,
     /// Triangles in a leaf; 0 for interior nodes.
@@ -137,13 +137,17 @@ impl Bvh {
             return;
         }
         let inv = Vec3::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+        // Plain comparisons rather than f32::min/max (which handle NaN at a cost): an infinite
+        // `inv` component gives +-inf bounds, never NaN, except for a ray exactly in a slab plane,
+        // where either outcome is acceptable.
+        let (lo, hi) = (|a: f32, b: f32| if a < b { a } else { b }, |a: f32, b: f32| if a > b { a } else { b });
         let slab = |n: &Node, t_far: f32| -> Option<f32> {
-            let (t0, t1) = ((n.min - o), (n.max - o));
+            let (t0, t1) = ((n.bounds[0] - o), (n.bounds[1] - o));
             let (ax, bx) = (t0.x * inv.x, t1.x * inv.x);
             let (ay, by) = (t0.y * inv.y, t1.y * inv.y);
             let (az, bz) = (t0.z * inv.z, t1.z * inv.z);
-            let near = ax.min(bx).max(ay.min(by)).max(az.min(bz)).max(t_min);
-            let far = ax.max(bx).min(ay.max(by)).min(az.max(bz)).min(t_far);
+            let near = hi(hi(lo(ax, bx), lo(ay, by)), hi(lo(az, bz), t_min));
+            let far = lo(lo(hi(ax, bx), hi(ay, by)), lo(hi(az, bz), t_far));
             (near <= far).then_some(near)
         };
         let mut stack = [0u32; 64];
@@ -229,7 +233,7 @@ fn build(nodes: &mut Vec<Node>, order: &mut [u32], offset: usize, boxes: &[Bound
         centre_bounds.grow(centroids[i as usize]);
     }
     let me = nodes.len();
-    nodes.push(Node { min: bounds.min, max: bounds.max, start: offset as u32, count: order.len() as u32 });
+    nodes.push(Node { bounds: [bounds.min, bounds.max], start: offset as u32, count: order.len() as u32 });
     if order.len() <= MAX_LEAF {
         return;
     }

@@ -76,6 +76,17 @@ impl EnvMap {
     /// Radiance arriving from direction `d` (unit, pointing away from the scene).
     pub fn eval(&self, d: Vec3) -> [f32; 3] {
         let (u, v) = uv(d);
+        self.eval_uv(u, v)
+    }
+
+    /// Radiance and solid-angle density of [`EnvMap::sample`] at direction `d`, in one lookup.
+    pub fn eval_and_pdf(&self, d: Vec3) -> ([f32; 3], f32) {
+        let (u, v) = uv(d);
+        (self.eval_uv(u, v), self.pdf_uv(u, v, d.y))
+    }
+
+    /// Bilinearly interpolated radiance at map coordinates `(u, v)`.
+    fn eval_uv(&self, u: f32, v: f32) -> [f32; 3] {
         let x = u * self.width as f32 - 0.5;
         let y = (v * self.height as f32 - 0.5).clamp(0.0, (self.height - 1) as f32);
         let (x0, y0) = (x.floor(), y.floor());
@@ -90,25 +101,31 @@ impl EnvMap {
     /// Solid-angle density of [`EnvMap::sample`] at direction `d`.
     pub fn pdf(&self, d: Vec3) -> f32 {
         let (u, v) = uv(d);
+        self.pdf_uv(u, v, d.y)
+    }
+
+    /// [`EnvMap::pdf`] at map coordinates, `cos_theta` being the direction's y.
+    fn pdf_uv(&self, u: f32, v: f32, cos_theta: f32) -> f32 {
         let i = ((u * self.width as f32) as usize).min(self.width - 1);
         let j = ((v * self.height as f32) as usize).min(self.height - 1);
-        let sin_theta = (1.0 - d.y * d.y).max(0.0).sqrt();
+        let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
         if sin_theta <= 1e-6 {
             return 0.0;
         }
         self.texel_pmf[j * self.width + i] * (self.width * self.height) as f32 / (2.0 * PI * PI * sin_theta)
     }
 
-    /// Importance-sample a direction from two uniform numbers: `(direction, pdf)`.
-    pub fn sample(&self, r1: f32, r2: f32) -> (Vec3, f32) {
+    /// Importance-sample a direction from two uniform numbers: `(direction, pdf, radiance)`.
+    pub fn sample(&self, r1: f32, r2: f32) -> (Vec3, f32, [f32; 3]) {
         let j = self.row_cdf.partition_point(|&c| c <= r1).saturating_sub(1).min(self.height - 1);
         let row_pmf = (self.row_cdf[j + 1] - self.row_cdf[j]).max(1e-30);
         let dv = ((r1 - self.row_cdf[j]) / row_pmf).clamp(0.0, 1.0);
         let cdf = &self.col_cdf[j * (self.width + 1)..(j + 1) * (self.width + 1)];
         let i = cdf.partition_point(|&c| c <= r2).saturating_sub(1).min(self.width - 1);
         let du = ((r2 - cdf[i]) / (cdf[i + 1] - cdf[i]).max(1e-30)).clamp(0.0, 1.0);
-        let d = direction((i as f32 + du) / self.width as f32, (j as f32 + dv) / self.height as f32);
-        (d, self.pdf(d))
+        let (u, v) = ((i as f32 + du) / self.width as f32, (j as f32 + dv) / self.height as f32);
+        let d = direction(u, v);
+        (d, self.pdf_uv(u, v, d.y), self.eval_uv(u, v))
     }
 }
 
@@ -141,7 +158,7 @@ pub fn procedural_image() -> Image<f32> {
 
 /// Map coordinates of a direction.
 fn uv(d: Vec3) -> (f32, f32) {
-    let u = d.x.atan2(-d.z) / TAU;
+    let u = rmvp_dataset::polarization::atan2(d.x, -d.z) / TAU;
     (u - u.floor(), d.y.clamp(-1.0, 1.0).acos() / PI)
 }
 
@@ -176,8 +193,10 @@ mod tests {
         let n = 200_000;
         let (mut importance, mut uniform) = (0.0f64, 0.0f64);
         for _ in 0..n {
-            let (d, pdf) = env.sample(rng.next_f32(), rng.next_f32());
-            importance += (env.eval(d)[1] / pdf) as f64;
+            let (d, pdf, radiance) = env.sample(rng.next_f32(), rng.next_f32());
+            assert!((pdf - env.pdf(d)).abs() <= 1e-3 * pdf, "{pdf} vs {}", env.pdf(d));
+            assert!((radiance[1] - env.eval(d)[1]).abs() <= 1e-3 * radiance[1] + 1e-5);
+            importance += (radiance[1] / pdf) as f64;
             let z = 1.0 - 2.0 * rng.next_f32();
             let phi = TAU * rng.next_f32();
             let r = (1.0 - z * z).sqrt();

@@ -50,6 +50,7 @@ pub fn render_view(object: &Object, env: &EnvMap, camera: &Camera, settings: Set
     let r_row3 = |m: &nalgebra::Matrix3<f64>, k: usize| Vec3::new(m[(k, 0)] as f32, m[(k, 1)] as f32, m[(k, 2)] as f32);
     let camera_z = r_row3(&camera.r, 2);
     let camera_center = Vec3::from_f64(&camera.center().coords);
+    let rays = RayGenerator::new(camera);
     s0.data_mut()
         .par_chunks_mut(3 * w)
         .zip(s1.data_mut().par_chunks_mut(3 * w))
@@ -67,22 +68,20 @@ pub fn render_view(object: &Object, env: &EnvMap, camera: &Camera, settings: Set
                     let normal = hit.n;
                     n[3 * i..3 * i + 3].copy_from_slice(&[normal.x, normal.y, normal.z]);
                 }
+                // The pixel's Stokes frame (it turns by far less than a degree across a pixel).
+                let (x, y) = camera.stokes_frame(&centre.direction);
+                let (x, y) = (Vec3::from_f64(&x), Vec3::from_f64(&y));
                 let mut acc = [[0.0f32; 3]; 3];
                 let mut hits = 0;
                 for _ in 0..settings.spp {
-                    let ray = camera.ray(i as f64 + rng.next_f32() as f64, j as f64 + rng.next_f32() as f64);
-                    let dir = Vec3::from_f64(&ray.direction);
+                    let dir = rays.direction(i as f32 + rng.next_f32(), j as f32 + rng.next_f32());
                     match object.intersect(camera_center, dir) {
                         Some(hit) => {
                             hits += 1;
-                            let (x, y) = camera.stokes_frame(&ray.direction);
-                            let frame =
-                                ShadingFrame { n: hit.n, v: -dir, x: Vec3::from_f64(&x), y: Vec3::from_f64(&y) };
+                            let frame = ShadingFrame { n: hit.n, v: -dir, x, y };
                             let value = shade(object, env, &hit, &frame, &mut rng);
-                            for k in 0..3 {
-                                for c in 0..3 {
-                                    acc[k][c] += value[k][c];
-                                }
+                            for (a, v) in acc.iter_mut().flatten().zip(value.iter().flatten()) {
+                                *a += v;
                             }
                         }
                         None => {
@@ -104,13 +103,41 @@ pub fn render_view(object: &Object, env: &EnvMap, camera: &Camera, settings: Set
     RenderedView { stokes: Stokes { s0, s1, s2 }, mask, depth, normals }
 }
 
+/// Camera ray directions in `f32`: through `R^T K^-1 (u, v, 1)` for pinhole cameras, through
+/// [`Camera::ray`] when the lens has distortion.
+struct RayGenerator<'a> {
+    camera: &'a Camera,
+    pinhole: Option<[Vec3; 3]>,
+}
+
+impl<'a> RayGenerator<'a> {
+    fn new(camera: &'a Camera) -> Self {
+        let pinhole = match (camera.distortion, camera.k.try_inverse()) {
+            (None, Some(k_inv)) => {
+                let m = camera.r.transpose() * k_inv;
+                Some([0, 1, 2].map(|c| Vec3::new(m[(0, c)] as f32, m[(1, c)] as f32, m[(2, c)] as f32)))
+            }
+            _ => None,
+        };
+        Self { camera, pinhole }
+    }
+
+    /// The unit world direction through continuous pixel coordinates `(u, v)`.
+    fn direction(&self, u: f32, v: f32) -> Vec3 {
+        match &self.pinhole {
+            Some([cu, cv, c1]) => (*cu * u + *cv * v + *c1).normalize(),
+            None => Vec3::from_f64(&self.camera.ray(u as f64, v as f64).direction),
+        }
+    }
+}
+
 /// Radiance towards the viewer at a surface point: one environment sample and one BRDF sample,
 /// combined by the power heuristic.
 fn shade(object: &Object, env: &EnvMap, hit: &SurfacePoint, frame: &ShadingFrame, rng: &mut Rng) -> StokesRgb {
     let mut out = [[0.0f32; 3]; 3];
     let surface = &hit.surface;
     let eps = 1e-4 * (1.0 + hit.p.length());
-    let mut add = |l: Vec3, weight_over_pdf: f32| {
+    let mut add = |l: Vec3, radiance: [f32; 3], weight_over_pdf: f32| {
         let f = surface.eval(frame, l);
         if f[0].iter().all(|&v| v <= 0.0) {
             return;
@@ -119,24 +146,23 @@ fn shade(object: &Object, env: &EnvMap, hit: &SurfacePoint, frame: &ShadingFrame
         if object.occluded(origin, l) {
             return;
         }
-        let radiance = env.eval(l);
         for k in 0..3 {
             for c in 0..3 {
                 out[k][c] += f[k][c] * radiance[c] * weight_over_pdf;
             }
         }
     };
-    let (l, pdf_light) = env.sample(rng.next_f32(), rng.next_f32());
+    let (l, pdf_light, radiance) = env.sample(rng.next_f32(), rng.next_f32());
     if pdf_light > 0.0 {
         let pdf_brdf = surface.pdf(frame, l);
-        add(l, pdf_light / (pdf_light * pdf_light + pdf_brdf * pdf_brdf));
+        add(l, radiance, pdf_light / (pdf_light * pdf_light + pdf_brdf * pdf_brdf));
     }
     let (a, b, c) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
     if let Some(l) = surface.sample(frame, a, b, c) {
         let pdf_brdf = surface.pdf(frame, l);
         if pdf_brdf > 0.0 {
-            let pdf_light = env.pdf(l);
-            add(l, pdf_brdf / (pdf_brdf * pdf_brdf + pdf_light * pdf_light));
+            let (radiance, pdf_light) = env.eval_and_pdf(l);
+            add(l, radiance, pdf_brdf / (pdf_brdf * pdf_brdf + pdf_light * pdf_light));
         }
     }
     out
