@@ -30,6 +30,7 @@ def main():
     folder = sys.argv[1]
     variant = sys.argv[2] if len(sys.argv) > 2 else "llvm_ad_mono_polarized"
     mi.set_variant(variant)
+    mi.set_log_level(mi.LogLevel.Error)
     spec = json.load(open(f"{folder}/cameras.json"))
     spp = spec["spp"]
     scene = mi.load_dict({

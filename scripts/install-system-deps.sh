@@ -12,6 +12,7 @@ packages=(
 )
 if [ "${1:-}" = bench ]; then
   packages+=(python3-numpy python3-opencv) # same OpenCV 4.6 as the Rust side
+  packages+=(python3-venv libllvm19)         # Mitsuba 3 (from PyPI) and its LLVM back end
 fi
 
 missing=()

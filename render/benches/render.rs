@@ -1,5 +1,5 @@
 //! Six 256x256 views at 64 samples per pixel of a mesh (`RMVP_BENCH_MESH`, else the built-in
-//! spot) under the built-in environment: seconds per view. With `RMVP_BENCH_EXPORT=DIR` it also
+//! spot) under the built-in environment: seconds per view (`RMVP_BENCH_SPP` overrides 64). With `RMVP_BENCH_EXPORT=DIR` it also
 //! writes the cameras (`cameras.json`), the environment (`env.exr`) and the mesh (`mesh.ply`)
 //! so that `bench/render_mitsuba.py` renders the very same views.
 
@@ -20,7 +20,9 @@ fn main() {
         Some(path) => Mesh::read(std::path::Path::new(&path)).expect("RMVP_BENCH_MESH readable"),
         None => default_mesh(),
     };
-    let (w, h, spp) = (256u32, 256u32, 64u32);
+    // `RMVP_BENCH_SPP` shortens runs for instruction counting (callgrind); the benchmark is 64.
+    let spp = std::env::var("RMVP_BENCH_SPP").ok().and_then(|v| v.parse().ok()).unwrap_or(64u32);
+    let (w, h) = (256u32, 256u32);
     let k = rig_intrinsics(w, h);
     let cameras = Rig::Sphere { views: 6 }.cameras(k, w, h, framing_distance(&k, w, h, 1.0, 0.85), 0);
     let env_image = procedural_image();

@@ -1,10 +1,12 @@
-//! A bounding volume hierarchy over triangles for ray casting: binned SAH build, depth-first
-//! flattened nodes, nearest-child-first traversal, Moeller-Trumbore intersection.
+//! A bounding volume hierarchy over triangles for ray casting: a binary tree built with binned
+//! SAH, collapsed into a 4-wide tree whose nodes test their four child boxes at once (laid out
+//! as structure of arrays, so that the slab tests compile to SIMD lanes), nearest-child-first
+//! traversal, Moeller-Trumbore intersection.
 
 use crate::math::Vec3;
 
 /// Triangles per leaf at most (smaller leaves are built when the SAH says so).
-const MAX_LEAF: usize = 4;
+const MAX_LEAF: usize = 2;
 const BINS: usize = 16;
 
 #[derive(Clone, Copy, Debug)]
@@ -15,6 +17,20 @@ struct Node {
     start: u32,
     /// Triangles in a leaf; 0 for interior nodes.
     count: u32,
+}
+
+/// Slot marker of a wide node without a child there.
+const EMPTY: u32 = u32::MAX;
+
+/// A node of the 4-wide tree: four child boxes and what each child is.
+#[derive(Clone, Copy, Debug)]
+struct WideNode {
+    min: [[f32; 4]; 3],
+    max: [[f32; 4]; 3],
+    /// Wide-node index (inner child) or first triangle (leaf child).
+    child: [u32; 4],
+    /// Triangles of a leaf child, 0 for an inner child, [`EMPTY`] for no child.
+    count: [u32; 4],
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -39,7 +55,7 @@ pub struct Hit {
 
 /// A BVH over a triangle mesh.
 pub struct Bvh {
-    nodes: Vec<Node>,
+    nodes: Vec<WideNode>,
     triangles: Vec<Triangle>,
     /// Face index of each triangle, in leaf order.
     face: Vec<u32>,
@@ -87,9 +103,11 @@ impl Bvh {
             boxes.push(b);
         }
         let mut order: Vec<u32> = (0..faces.len() as u32).collect();
-        let mut nodes = Vec::with_capacity(2 * faces.len() / MAX_LEAF + 1);
+        let mut binary = Vec::with_capacity(2 * faces.len() / MAX_LEAF + 1);
+        let mut nodes = Vec::with_capacity(faces.len() / MAX_LEAF + 1);
         if !faces.is_empty() {
-            build(&mut nodes, &mut order, 0, &boxes, &centroids);
+            build(&mut binary, &mut order, 0, &boxes, &centroids);
+            collapse(&binary, 0, &mut nodes);
         }
         let triangles = order
             .iter()
@@ -106,7 +124,7 @@ impl Bvh {
     pub fn intersect(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let mut t_best = t_max;
-        self.traverse(origin, direction, t_min, &mut t_best, |tri, t, u, v| {
+        self.traverse::<false>(origin, direction, t_min, &mut t_best, |tri, t, u, v| {
             best = Some(Hit { t, triangle: tri, u, v });
             false
         });
@@ -117,15 +135,15 @@ impl Bvh {
     pub fn occluded(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> bool {
         let mut hit = false;
         let mut t_best = t_max;
-        self.traverse(origin, direction, t_min, &mut t_best, |_, _, _, _| {
+        self.traverse::<true>(origin, direction, t_min, &mut t_best, |_, _, _, _| {
             hit = true;
             true
         });
         hit
     }
 
-    /// Walk the tree; `on_hit(face, t, u, v)` returns true to stop.
-    fn traverse(
+    /// Walk the tree; `on_hit(face, t, u, v)` returns true to stop. `ANY_HIT` skips ordering.
+    fn traverse<const ANY_HIT: bool>(
         &self,
         o: Vec3,
         d: Vec3,
@@ -136,31 +154,48 @@ impl Bvh {
         if self.nodes.is_empty() {
             return;
         }
-        let inv = Vec3::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
-        // Plain comparisons rather than f32::min/max (which handle NaN at a cost): an infinite
-        // `inv` component gives +-inf bounds, never NaN, except for a ray exactly in a slab plane,
-        // where either outcome is acceptable.
-        let (lo, hi) = (|a: f32, b: f32| if a < b { a } else { b }, |a: f32, b: f32| if a > b { a } else { b });
-        let slab = |n: &Node, t_far: f32| -> Option<f32> {
-            let (t0, t1) = ((n.bounds[0] - o), (n.bounds[1] - o));
-            let (ax, bx) = (t0.x * inv.x, t1.x * inv.x);
-            let (ay, by) = (t0.y * inv.y, t1.y * inv.y);
-            let (az, bz) = (t0.z * inv.z, t1.z * inv.z);
-            let near = hi(hi(lo(ax, bx), lo(ay, by)), hi(lo(az, bz), t_min));
-            let far = lo(lo(hi(ax, bx), hi(ay, by)), lo(hi(az, bz), t_far));
-            (near <= far).then_some(near)
-        };
-        let mut stack = [0u32; 64];
-        let mut top = 0;
-        let mut index = 0usize;
-        if slab(&self.nodes[0], *t_best).is_none() {
-            return;
-        }
-        loop {
-            let node = &self.nodes[index];
-            if node.count > 0 {
-                for k in node.start..node.start + node.count {
-                    let tri = &self.triangles[k as usize];
+        let inv = [1.0 / d.x, 1.0 / d.y, 1.0 / d.z];
+        let origin = [o.x, o.y, o.z];
+        // Stack of (wide node, entry distance), left uninitialised: zeroing 2 KB per ray cost
+        // more than a shadow ray's traversal. Entries below `top` are always written.
+        let mut stack = [std::mem::MaybeUninit::<(u32, f32)>::uninit(); 256];
+        stack[0].write((0, 0.0));
+        let mut top = 1;
+        while top > 0 {
+            top -= 1;
+            // SAFETY: every slot below `top` was written before `top` grew past it.
+            let (index, entry) = unsafe { stack[top].assume_init() };
+            if entry > *t_best {
+                continue;
+            }
+            let node = &self.nodes[index as usize];
+            // Four slab tests at once. Plain comparisons rather than f32::min/max (which pay for
+            // NaN handling): an infinite `inv` gives +-inf bounds, never NaN, except for a ray
+            // exactly in a slab plane, where either outcome is acceptable.
+            let mut near = [t_min; 4];
+            let mut far = [*t_best; 4];
+            for axis in 0..3 {
+                for k in 0..4 {
+                    let a = (node.min[axis][k] - origin[axis]) * inv[axis];
+                    let b = (node.max[axis][k] - origin[axis]) * inv[axis];
+                    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
+                    near[k] = if lo > near[k] { lo } else { near[k] };
+                    far[k] = if hi < far[k] { hi } else { far[k] };
+                }
+            }
+            let mut inner = [(0u32, 0.0f32); 4];
+            let mut inner_count = 0;
+            for k in 0..4 {
+                if node.count[k] == EMPTY || near[k] > far[k] {
+                    continue;
+                }
+                if node.count[k] == 0 {
+                    inner[inner_count] = (node.child[k], near[k]);
+                    inner_count += 1;
+                    continue;
+                }
+                for t_index in node.child[k]..node.child[k] + node.count[k] {
+                    let tri = &self.triangles[t_index as usize];
                     let p = d.cross(tri.e2);
                     let det = tri.e1.dot(p);
                     if det.abs() < 1e-12 {
@@ -180,47 +215,66 @@ impl Bvh {
                     let t = tri.e2.dot(q) * inv_det;
                     if t > t_min && t < *t_best {
                         *t_best = t;
-                        if on_hit(self.face[k as usize], t, u, v) {
+                        if on_hit(self.face[t_index as usize], t, u, v) {
                             return;
                         }
                     }
                 }
-            } else {
-                let (left, right) = (index + 1, node.start as usize);
-                let (hl, hr) = (slab(&self.nodes[left], *t_best), slab(&self.nodes[right], *t_best));
-                match (hl, hr) {
-                    (Some(a), Some(b)) => {
-                        let (near, far) = if a <= b { (left, right) } else { (right, left) };
-                        stack[top] = far as u32;
-                        top += 1;
-                        index = near;
-                        continue;
+            }
+            // Push the farthest first, so that the nearest child is visited next.
+            let inner = &mut inner[..inner_count];
+            if !ANY_HIT {
+                // Insertion sort, farthest first: at most four entries.
+                for i in 1..inner.len() {
+                    let mut j = i;
+                    while j > 0 && inner[j - 1].1 < inner[j].1 {
+                        inner.swap(j - 1, j);
+                        j -= 1;
                     }
-                    (Some(_), None) => {
-                        index = left;
-                        continue;
-                    }
-                    (None, Some(_)) => {
-                        index = right;
-                        continue;
-                    }
-                    (None, None) => {}
                 }
             }
-            // Pop the next node still in range.
-            loop {
-                if top == 0 {
-                    return;
-                }
-                top -= 1;
-                let candidate = stack[top] as usize;
-                if slab(&self.nodes[candidate], *t_best).is_some() {
-                    index = candidate;
-                    break;
-                }
+            for &entry in inner.iter() {
+                stack[top].write(entry);
+                top += 1;
             }
         }
     }
+}
+
+/// Collapse the binary subtree at `index` (an inner node, or the root) into 4-wide nodes:
+/// repeatedly open the largest inner child until four children are gathered. Returns the
+/// index of the wide node.
+fn collapse(binary: &[Node], index: usize, wide: &mut Vec<WideNode>) -> u32 {
+    let me = wide.len();
+    wide.push(WideNode { min: [[f32::MAX; 4]; 3], max: [[f32::MIN; 4]; 3], child: [0; 4], count: [EMPTY; 4] });
+    let area = |k: usize| {
+        let n = &binary[k];
+        Bounds { min: n.bounds[0], max: n.bounds[1] }.area()
+    };
+    let mut kids: Vec<usize> =
+        if binary[index].count > 0 { vec![index] } else { vec![index + 1, binary[index].start as usize] };
+    while kids.len() < 4 {
+        let largest_inner = kids
+            .iter()
+            .enumerate()
+            .filter(|(_, &k)| binary[k].count == 0)
+            .max_by(|a, b| area(*a.1).total_cmp(&area(*b.1)))
+            .map(|(slot, _)| slot);
+        let Some(slot) = largest_inner else { break };
+        let k = kids.swap_remove(slot);
+        kids.extend([k + 1, binary[k].start as usize]);
+    }
+    for (slot, &k) in kids.iter().enumerate() {
+        let n = &binary[k];
+        for axis in 0..3 {
+            wide[me].min[axis][slot] = n.bounds[0].get(axis);
+            wide[me].max[axis][slot] = n.bounds[1].get(axis);
+        }
+        let (child, count) = if n.count > 0 { (n.start, n.count) } else { (collapse(binary, k, wide), 0) };
+        wide[me].child[slot] = child;
+        wide[me].count[slot] = count;
+    }
+    me as u32
 }
 
 /// Build the subtree over `order[..]` (whose first element is triangle `offset` of the final
