@@ -270,5 +270,5 @@ fn same_seed_same_bytes_whatever_the_threads() {
         .build()
         .unwrap()
         .install(|| render(Lobes::Plastic, 0.5, 0.1, 4).1);
-    assert_eq!(a, b);
+    assert!(a == b, "renders differ between thread counts");
 }

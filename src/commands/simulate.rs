@@ -15,7 +15,7 @@ use serde_json::json;
 use std::path::PathBuf;
 
 /// Arguments of `rmvp simulate`.
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct Args {
     /// Output folder: `nersp/` and `rmvp/` scene layouts, `contact_sheet.png`.
     #[arg(short, long)]
