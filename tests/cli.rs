@@ -118,6 +118,14 @@ fn simulate_writes_both_layouts_and_raw_frames() {
     assert!(a.mesh.is_some() && a.env_map.is_some());
     assert_eq!(std::fs::metadata(out.join("raw/000.raw")).unwrap().len(), 128 * 96 * 3 / 2);
     assert!(out.join("contact_sheet.png").is_file());
+    // Camera-frame normals: the world normals rotated by R.
+    let cam_normals =
+        rmvp_dataset::io::exr::read_exr(&out.join("camera_normals/001.exr"), &["N.X", "N.Y", "N.Z"]).unwrap();
+    let (world, r) = (a.views[1].normals.as_ref().unwrap(), a.views[1].camera.r);
+    for (c, w) in cam_normals.data().chunks_exact(3).zip(world.data().chunks_exact(3)).step_by(97) {
+        let expected = r * nalgebra::Vector3::new(w[0] as f64, w[1] as f64, w[2] as f64);
+        assert!((0..3).all(|k| (c[k] as f64 - expected[k]).abs() < 1e-5));
+    }
     // Same seed, same bytes.
     let again = tmp.path().join("again");
     ok(&[
@@ -141,6 +149,22 @@ fn simulate_writes_both_layouts_and_raw_frames() {
         std::fs::read(out.join("nersp/s1/0001.npy")).unwrap(),
         std::fs::read(again.join("nersp/s1/0001.npy")).unwrap()
     );
+    // A conductor renders too (no diffuse lobe: a mirror-like spot).
+    ok(&[
+        "simulate",
+        "-o",
+        s(&tmp.path().join("gold")),
+        "--res",
+        "32x24",
+        "--spp",
+        "1",
+        "--views",
+        "1",
+        "--conductor",
+        "0.25,3.0",
+        "--layout",
+        "rmvp",
+    ]);
     let err = fails(&["simulate", "-o", s(&again), "--res", "63x48"]);
     assert!(err.contains("even"), "{err}");
 }
@@ -152,6 +176,8 @@ fn demosaic_reports_a_truncated_frame_by_name() {
     std::fs::write(&raw, vec![0u8; 1000]).unwrap();
     let err = fails(&["demosaic", s(&raw), "-o", s(&tmp.path().join("o"))]);
     assert!(err.contains("cut.raw") && err.contains("truncated"), "{err}");
+    let err = fails(&["demosaic", s(&raw), "-o", "x", "--ccm", "1,0,0"]);
+    assert!(err.contains("expected 9 comma-separated numbers"), "{err}");
     let err = fails(&["demosaic", s(&raw), "-o", "x", "--pixel-format", "RGB8"]);
     assert!(err.contains("unsupported pixel format"), "{err}");
 }

@@ -105,13 +105,23 @@ impl Rig {
 
 #[derive(Deserialize)]
 #[serde(untagged)]
-enum PoseRecord {
+enum Pose {
     Extrinsics { r: [[f64; 3]; 3], t: [f64; 3] },
     LookAt { eye: [f64; 3], target: [f64; 3] },
 }
 
+#[derive(Deserialize)]
+struct PoseRecord {
+    #[serde(flatten)]
+    pose: Pose,
+    /// Intrinsics of this camera; default: the rig's.
+    #[serde(default)]
+    k: Option<[[f64; 3]; 3]>,
+}
+
 /// Read an explicit pose list: a JSON array whose entries are `{"r": [[..]], "t": [..]}`
-/// (world to camera) or `{"eye": [..], "target": [..]}` (+Y up).
+/// (world to camera) or `{"eye": [..], "target": [..]}` (+Y up), each optionally with its own
+/// intrinsics `"k": [[..]]` (else `k`).
 pub fn read_poses(path: &Path, k: Matrix3<f64>, width: u32, height: u32) -> Result<Vec<Camera>> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
     let poses: Vec<PoseRecord> =
@@ -120,11 +130,12 @@ pub fn read_poses(path: &Path, k: Matrix3<f64>, width: u32, height: u32) -> Resu
         .into_iter()
         .enumerate()
         .map(|(i, p)| {
-            let camera = match p {
-                PoseRecord::Extrinsics { r, t } => {
+            let k = p.k.as_ref().map_or(k, rmvp_dataset::camera::matrix_from_rows);
+            let camera = match p.pose {
+                Pose::Extrinsics { r, t } => {
                     Camera::new(k, rmvp_dataset::camera::matrix_from_rows(&r), Vector3::from(t), width, height)
                 }
-                PoseRecord::LookAt { eye, target } => {
+                Pose::LookAt { eye, target } => {
                     look_at(k, Vector3::from(eye), Vector3::from(target), Vector3::y(), width, height)
                 }
             };
@@ -149,6 +160,22 @@ mod tests {
         // World up appears up in the image (smaller row).
         assert!(cam.project(&Point3::new(0.0, 0.3, 0.0)).unwrap().y < 512.0);
         assert!((cam.r.determinant() - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn pose_lists_accept_extrinsics_look_at_and_own_intrinsics() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("poses.json");
+        let text = r#"[{"eye": [0, 0, 3], "target": [0, 0, 0]},
+                       {"r": [[1,0,0],[0,1,0],[0,0,1]], "t": [0, 0, 4], "k": [[50,0,32],[0,50,24],[0,0,1]]}]"#;
+        std::fs::write(&path, text).unwrap();
+        let cams = read_poses(&path, rig_intrinsics(64, 48), 64, 48).unwrap();
+        assert!((cams[0].center().coords - Vector3::new(0.0, 0.0, 3.0)).norm() < 1e-12);
+        assert_eq!(cams[1].k[(0, 0)], 50.0);
+        assert_eq!(cams[0].k, rig_intrinsics(64, 48));
+        std::fs::write(&path, r#"[{"r": [[2,0,0],[0,1,0],[0,0,1]], "t": [0, 0, 4]}]"#).unwrap();
+        let err = read_poses(&path, rig_intrinsics(64, 48), 64, 48).unwrap_err().to_string();
+        assert!(err.contains("pose 0") && err.contains("not a rotation"), "{err}");
     }
 
     #[test]

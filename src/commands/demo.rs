@@ -57,6 +57,7 @@ pub fn run(args: Args) -> Result<()> {
         raw: true,
         seed: 0,
         eta: 1.5,
+        conductor: None,
         layout: "nersp".into(),
     })?;
 

@@ -34,8 +34,8 @@ pub struct Args {
     #[arg(long, num_args = 1..)]
     dark: Vec<PathBuf>,
     /// Colour-correction matrix, nine numbers row by row: "m00,m01,...,m22".
-    #[arg(long, value_delimiter = ',', num_args = 9)]
-    ccm: Option<Vec<f32>>,
+    #[arg(long, value_parser = super::parse_numbers::<9>)]
+    ccm: Option<[f32; 9]>,
 }
 
 /// Run the command.

@@ -17,7 +17,8 @@ use std::path::PathBuf;
 /// Arguments of `rmvp simulate`.
 #[derive(clap::Args, Clone)]
 pub struct Args {
-    /// Output folder: `nersp/` and `rmvp/` scene layouts, `contact_sheet.png`.
+    /// Output folder: `nersp/` and `rmvp/` scene layouts, `camera_normals/`, `contact_sheet.png`,
+    /// and with `--raw` the sensor frames in `raw/`.
     #[arg(short, long)]
     pub output: PathBuf,
     /// Mesh to render (PLY or OBJ); default: the built-in "spot".
@@ -47,6 +48,9 @@ pub struct Args {
     /// Relative refractive index of the dielectric surface.
     #[arg(long, default_value_t = 1.5)]
     pub eta: f32,
+    /// Render a conductor of complex index N + iK instead ("N,K", e.g. gold at 600 nm "0.25,3.0").
+    #[arg(long, value_parser = super::parse_numbers::<2>)]
+    pub conductor: Option<[f32; 2]>,
     /// Layouts to write: both, nersp or rmvp.
     #[arg(long, default_value = "both")]
     pub layout: String,
@@ -80,7 +84,11 @@ pub fn simulate(args: &Args) -> Result<Scene> {
         None => procedural_image(),
     };
     let env = EnvMap::new(&env_image).with_context(|| format!("environment map {:?}", args.env))?;
-    let object = Object::new(&mesh, Interface::Dielectric(args.eta), Lobes::Plastic)?;
+    let interface = match &args.conductor {
+        Some(nk) => Interface::Conductor(nk[0], nk[1]),
+        None => Interface::Dielectric(args.eta),
+    };
+    let object = Object::new(&mesh, interface, Lobes::Plastic)?;
     let k = rig_intrinsics(width, height);
     let radius =
         mesh.positions.iter().map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()).fold(0.0f32, f32::max) as f64;
@@ -124,6 +132,22 @@ pub fn simulate(args: &Args) -> Result<Scene> {
             aop_picture(&aop, &dop, dop_full, Some(&render.mask)),
             normal_picture,
         ]);
+        let to_camera = camera.r.cast::<f32>();
+        let camera_normals: Vec<f32> = render
+            .normals
+            .data()
+            .chunks_exact(3)
+            .flat_map(|n| {
+                let c = to_camera * nalgebra::Vector3::new(n[0], n[1], n[2]);
+                [c.x, c.y, c.z]
+            })
+            .collect();
+        let camera_normals = Image::from_vec(render.normals.width(), render.normals.height(), 3, camera_normals)?;
+        exr::write_exr(
+            &args.output.join("camera_normals").join(format!("{i:03}.exr")),
+            &camera_normals,
+            &["N.X", "N.Y", "N.Z"],
+        )?;
         scene.views.push(render.into_view(format!("{i:03}"), Split::Train, camera.clone(), scale));
     }
     scene.mesh = Some(mesh);
@@ -131,8 +155,9 @@ pub fn simulate(args: &Args) -> Result<Scene> {
     scene.metadata = json!({
         "generator": format!("rmvp simulate {}", env!("CARGO_PKG_VERSION")),
         "mesh": mesh_name,
-        "material": "pplastic",
+        "material": if args.conductor.is_some() { "conductor" } else { "pplastic" },
         "eta": args.eta,
+        "conductor": args.conductor,
         "spp": args.spp,
         "seed": args.seed,
         "rig": args.rig,
