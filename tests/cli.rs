@@ -82,22 +82,11 @@ fn demo_simulates_captures_and_builds_a_valid_dataset() {
 fn simulate_writes_both_layouts_and_raw_frames() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sim");
-    ok(&[
-        "simulate",
-        "-o",
-        s(&out),
-        "--res",
-        "64x48",
-        "--spp",
-        "2",
-        "--views",
-        "4",
-        "--rig",
-        "turntable",
-        "--raw",
-        "--seed",
-        "5",
-    ]);
+    let simulate = |dir: &Path| {
+        let args = ["--res", "64x48", "--spp", "2", "--views", "4", "--rig", "turntable", "--raw", "--seed", "5"];
+        ok(&[&["simulate", "-o", s(dir)][..], &args[..]].concat());
+    };
+    simulate(&out);
     let a = rmvp_dataset::layout::read_scene(&out.join("nersp")).unwrap();
     let b = rmvp_dataset::layout::read_scene(&out.join("rmvp")).unwrap();
     assert_eq!(a.views.len(), 4);
@@ -128,22 +117,7 @@ fn simulate_writes_both_layouts_and_raw_frames() {
     }
     // Same seed, same bytes.
     let again = tmp.path().join("again");
-    ok(&[
-        "simulate",
-        "-o",
-        s(&again),
-        "--res",
-        "64x48",
-        "--spp",
-        "2",
-        "--views",
-        "4",
-        "--rig",
-        "turntable",
-        "--raw",
-        "--seed",
-        "5",
-    ]);
+    simulate(&again);
     assert_eq!(std::fs::read(out.join("raw/002.raw")).unwrap(), std::fs::read(again.join("raw/002.raw")).unwrap());
     assert_eq!(
         std::fs::read(out.join("nersp/s1/0001.npy")).unwrap(),
@@ -165,6 +139,10 @@ fn simulate_writes_both_layouts_and_raw_frames() {
         "--layout",
         "rmvp",
     ]);
+    let texture = tmp.path().join("t.png");
+    rmvp_dataset::io::png::write_png_u8(&texture, &rmvp_dataset::Image::new(2, 2, 3)).unwrap();
+    let err = fails(&["simulate", "-o", s(&again), "--texture", s(&texture)]);
+    assert!(err.contains("texture coordinates"), "{err}");
     let err = fails(&["simulate", "-o", s(&again), "--res", "63x48"]);
     assert!(err.contains("even"), "{err}");
 }

@@ -13,6 +13,15 @@ pub fn quantile(values: &[f32], q: f32) -> f32 {
     *v.select_nth_unstable_by(k, f32::total_cmp).1
 }
 
+/// Decode an sRGB-encoded value in `[0, 1]` to linear.
+pub fn srgb_to_linear(encoded: f32) -> f32 {
+    if encoded <= 0.040_45 {
+        encoded / 12.92
+    } else {
+        ((encoded + 0.055) / 1.055).powf(2.4)
+    }
+}
+
 fn srgb_encode(linear: f32) -> u8 {
     let c = linear.clamp(0.0, 1.0);
     let s = if c <= 0.003_130_8 { 12.92 * c } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 };
@@ -112,6 +121,13 @@ mod tests {
         assert_eq!(hsv_to_rgb(1.0 / 3.0, 1.0, 1.0), [0, 255, 0]);
         assert_eq!(hsv_to_rgb(2.0 / 3.0, 1.0, 1.0), [0, 0, 255]);
         assert_eq!(hsv_to_rgb(0.5, 0.0, 0.5), [128, 128, 128]);
+    }
+
+    #[test]
+    fn srgb_decoding_inverts_encoding() {
+        for code in [0u8, 1, 10, 100, 200, 255] {
+            assert_eq!(srgb_encode(srgb_to_linear(code as f32 / 255.0)), code);
+        }
     }
 
     #[test]

@@ -89,6 +89,28 @@ fn ascii_and_binary_ply_round_trip_and_bad_indices_are_caught() {
     mesh.write(&obj).unwrap();
     let back = Mesh::read(&obj).unwrap();
     assert_eq!((back.positions.len(), back.faces.len()), (mesh.positions.len(), mesh.faces.len()));
+    // Texture coordinates survive OBJ both ways.
+    let mut textured = mesh.clone();
+    let n = textured.positions.len();
+    for (name, scale) in [("u", 0.001), ("v", 0.002)] {
+        textured.vertex_properties.push(rmvp_dataset::mesh::VertexProperty {
+            name: name.into(),
+            kind: rmvp_dataset::mesh::ScalarKind::F32,
+            values: (0..n).map(|i| ((i as f64 * scale) % 1.0) as f32 as f64).collect(),
+        });
+    }
+    textured.write(&obj).unwrap();
+    let back = Mesh::read(&obj).unwrap();
+    // tobj numbers vertices by first use in the faces: match them by position.
+    let key = |p: &[f32; 3]| p.map(f32::to_bits);
+    let original: std::collections::HashMap<_, _> =
+        textured.positions.iter().map(key).zip(textured.texcoords().unwrap()).collect();
+    let b = back.texcoords().unwrap();
+    assert_eq!(b.len(), n);
+    assert!(back.positions.iter().zip(&b).all(|(p, q)| {
+        let t = original[&key(p)];
+        (t[0] - q[0]).abs() < 1e-6 && (t[1] - q[1]).abs() < 1e-6
+    }));
     let mut broken = mesh.clone();
     broken.faces[7] = [0, 1, mesh.positions.len() as u32];
     let err = broken.write(&tmp.path().join("b.ply")).unwrap_err().to_string();

@@ -3,7 +3,7 @@
 use crate::bvh::{Bvh, Hit};
 use crate::math::Vec3;
 use crate::pbrdf::{Interface, Lobes, Surface};
-use rmvp_dataset::{Error, Mesh, Result};
+use rmvp_dataset::{Error, Image, Mesh, Result};
 
 /// Default albedo where the mesh has no colours.
 pub const DEFAULT_ALBEDO: [f32; 3] = [0.75, 0.45, 0.3];
@@ -18,6 +18,9 @@ pub struct Object {
     normals: Vec<Vec3>,
     albedo: Vec<[f32; 3]>,
     roughness: Vec<f32>,
+    texcoords: Option<Vec<[f32; 2]>>,
+    /// Linear RGB albedo texture, replacing the per-vertex albedo when set.
+    texture: Option<Image<f32>>,
     /// Optics of the surface.
     pub interface: Interface,
     /// Lobes of the surface.
@@ -73,9 +76,41 @@ impl Object {
             normals,
             albedo,
             roughness,
+            texcoords: mesh.texcoords(),
+            texture: None,
             interface,
             lobes,
         })
+    }
+
+    /// Take the albedo from a linear RGB texture, looked up at the mesh's texture coordinates
+    /// (bilinear, wrapping; `v = 0` is the image's bottom row).
+    pub fn set_albedo_texture(&mut self, texture: Image<f32>) -> Result<()> {
+        if self.texcoords.is_none() {
+            return Err(Error::invalid(
+                "the mesh has no texture coordinates (u v or s t vertex properties, or OBJ vt)",
+            ));
+        }
+        if texture.channels() < 3 || texture.width() == 0 || texture.height() == 0 {
+            return Err(Error::invalid("an albedo texture must be RGB"));
+        }
+        self.texture = Some(texture);
+        Ok(())
+    }
+
+    /// Bilinear lookup of the texture at `(u, v)`.
+    fn texel(texture: &Image<f32>, u: f32, v: f32) -> [f32; 3] {
+        let (w, h) = (texture.width() as f32, texture.height() as f32);
+        let (x, y) = (u * w - 0.5, (1.0 - v) * h - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let at = |i: f32, j: f32| {
+            let (i, j) = (i.rem_euclid(w) as usize, j.rem_euclid(h) as usize);
+            let p = texture.pixel(i.min(texture.width() - 1), j.min(texture.height() - 1));
+            [p[0], p[1], p[2]]
+        };
+        let (a, b, c, d) = (at(x0, y0), at(x0 + 1.0, y0), at(x0, y0 + 1.0), at(x0 + 1.0, y0 + 1.0));
+        [0, 1, 2].map(|k| (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + d[k] * fx) * fy)
     }
 
     /// The nearest surface point along a ray, attributes interpolated.
@@ -100,7 +135,13 @@ impl Object {
             n,
             t,
             surface: Surface {
-                albedo: mix3(self.albedo[ia], self.albedo[ib], self.albedo[ic]),
+                albedo: match (&self.texture, &self.texcoords) {
+                    (Some(texture), Some(uv)) => {
+                        let (ta, tb, tc) = (uv[ia], uv[ib], uv[ic]);
+                        Self::texel(texture, w * ta[0] + u * tb[0] + v * tc[0], w * ta[1] + u * tb[1] + v * tc[1])
+                    }
+                    _ => mix3(self.albedo[ia], self.albedo[ib], self.albedo[ic]),
+                },
                 alpha: (w * self.roughness[ia] + u * self.roughness[ib] + v * self.roughness[ic]).max(1e-3),
                 interface: self.interface,
                 lobes: self.lobes,

@@ -272,3 +272,57 @@ fn same_seed_same_bytes_whatever_the_threads() {
         .install(|| render(Lobes::Plastic, 0.5, 0.1, 4).1);
     assert!(a == b, "renders differ between thread counts");
 }
+
+#[test]
+fn textured_albedo_is_looked_up_at_the_texture_coordinates() {
+    // A quad in the z = 0 plane facing +z, texture coordinates spanning it, under a uniform unit
+    // sky: a Lambertian surface then reflects exactly its albedo.
+    use rmvp_dataset::mesh::{ScalarKind, VertexProperty};
+    let positions = vec![[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]];
+    let uv = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    let property = |name: &str, k: usize| VertexProperty {
+        name: name.into(),
+        kind: ScalarKind::F32,
+        values: uv.iter().map(|t| t[k]).collect(),
+    };
+    let mesh = Mesh {
+        normals: Some(vec![[0.0, 0.0, 1.0]; 4]),
+        positions,
+        faces: vec![[0, 1, 2], [0, 2, 3]],
+        vertex_properties: vec![property("u", 0), property("v", 1)],
+    };
+    // Texel (i, j), j counted from the top row: red grows to the right, green downwards.
+    let texel = |i: usize, j: usize| [(i + 1) as f32 / 5.0, (j + 1) as f32 / 5.0, 0.5];
+    let data = (0..16).flat_map(|k| texel(k % 4, k / 4)).collect();
+    let mut object = Object::new(&mesh, Interface::Dielectric(1.5), Lobes::Lambertian).unwrap();
+    object.set_albedo_texture(rmvp_dataset::Image::from_vec(4, 4, 3, data).unwrap()).unwrap();
+    let cam =
+        look_at(rig_intrinsics(SIZE, SIZE), Vector3::new(0.0, 0.0, 6.0), Vector3::zeros(), Vector3::y(), SIZE, SIZE);
+    let view = render_view(&object, &EnvMap::uniform([1.0; 3]), &cam, Settings { spp: 64, seed: 2 }, 0);
+    assert!(view.stokes.s0.width() == SIZE as usize);
+    // Interior texels: at the border the wrapping neighbour breaks the linear ramp.
+    for j in 1..3 {
+        for i in 1..3 {
+            // The texel centre on the quad: u = (i + 0.5) / 4, v = 1 - (j + 0.5) / 4.
+            let (u, v) = ((i as f64 + 0.5) / 4.0, 1.0 - (j as f64 + 0.5) / 4.0);
+            let p = cam.project(&nalgebra::Point3::new(2.0 * u - 1.0, 2.0 * v - 1.0, 0.0)).unwrap();
+            // Average a symmetric 5x5 block: bilinear interpolation is linear around the texel
+            // centre, so the mean keeps its value while Monte Carlo noise drops fivefold.
+            let (x, y) = (p.x as usize, p.y as usize);
+            let mut s0 = [0.0f32; 3];
+            for k in 0..25 {
+                let px = view.stokes.s0.pixel(x + k % 5 - 2, y + k / 5 - 2);
+                (0..3).for_each(|c| s0[c] += px[c] / 25.0);
+            }
+            let want = texel(i, j);
+            assert!((0..3).all(|c| (s0[c] - want[c]).abs() < 0.05), "texel ({i}, {j}): {s0:?} vs {want:?}");
+        }
+    }
+    // A mesh without texture coordinates cannot take a texture.
+    let mut plain = Object::new(&icosphere(1), Interface::Dielectric(1.5), Lobes::Plastic).unwrap();
+    assert!(plain
+        .set_albedo_texture(rmvp_dataset::Image::new(2, 2, 3))
+        .unwrap_err()
+        .to_string()
+        .contains("texture coordinates"));
+}

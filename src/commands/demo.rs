@@ -54,6 +54,7 @@ pub fn run(args: Args) -> Result<()> {
         res: args.res.clone(),
         spp: args.spp,
         env: None,
+        texture: None,
         raw: true,
         seed: 0,
         eta: 1.5,

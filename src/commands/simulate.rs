@@ -5,7 +5,7 @@ use rmvp_capture::sensor::SensorModel;
 use rmvp_capture::PixelFormat;
 use rmvp_dataset::io::{exr, png, write_bytes_atomically};
 use rmvp_dataset::layout::{write_scene, Layout};
-use rmvp_dataset::visualize::{aop_picture, contact_sheet, preview, quantile};
+use rmvp_dataset::visualize::{aop_picture, contact_sheet, preview, quantile, srgb_to_linear};
 use rmvp_dataset::{Image, Mesh, Scene, Split};
 use rmvp_render::envmap::procedural_image;
 use rmvp_render::pbrdf::{Interface, Lobes};
@@ -36,6 +36,9 @@ pub struct Args {
     /// Samples per pixel.
     #[arg(long, default_value_t = 16)]
     pub spp: u32,
+    /// Albedo texture for meshes with texture coordinates: PNG (sRGB) or EXR (linear RGB).
+    #[arg(long)]
+    pub texture: Option<PathBuf>,
     /// Lat-long environment map (EXR, top row +Y); default: a built-in studio environment.
     #[arg(long)]
     pub env: Option<PathBuf>,
@@ -88,7 +91,10 @@ pub fn simulate(args: &Args) -> Result<Scene> {
         Some(nk) => Interface::Conductor(nk[0], nk[1]),
         None => Interface::Dielectric(args.eta),
     };
-    let object = Object::new(&mesh, interface, Lobes::Plastic)?;
+    let mut object = Object::new(&mesh, interface, Lobes::Plastic)?;
+    if let Some(path) = &args.texture {
+        object.set_albedo_texture(read_texture(path)?).with_context(|| format!("texture {}", path.display()))?;
+    }
     let k = rig_intrinsics(width, height);
     let radius =
         mesh.positions.iter().map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()).fold(0.0f32, f32::max) as f64;
@@ -218,6 +224,21 @@ fn write_raw_frames(scene: &Scene, dir: &std::path::Path, seed: u64) -> Result<(
     write_bytes_atomically(&dir.join("sensor.json"), serde_json::to_string_pretty(&description)?.as_bytes())?;
     bar.finish_with_message(format!("raw frames in {}", dir.display()));
     Ok(())
+}
+
+/// A linear RGB texture: EXR channels R, G, B as they are; PNG samples sRGB-decoded.
+fn read_texture(path: &std::path::Path) -> Result<Image<f32>> {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+        return Ok(exr::read_exr(path, &["R", "G", "B"])?);
+    }
+    let linear = match png::read_png(path)? {
+        png::PngImage::U8(i) => i.map(|v| srgb_to_linear(v as f32 / 255.0)),
+        png::PngImage::U16(i) => i.map(|v| srgb_to_linear(v as f32 / 65535.0)),
+    };
+    if linear.channels() < 3 {
+        bail!("{}: an albedo texture must be RGB", path.display());
+    }
+    Ok(linear)
 }
 
 /// Shrink a picture by an integer factor so that its width is at most `max_width`.

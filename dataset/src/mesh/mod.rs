@@ -105,6 +105,15 @@ impl Mesh {
         )
     }
 
+    /// Per-vertex texture coordinates from `u/v`, `s/t` or `texture_u/texture_v` properties
+    /// (OpenGL convention: `v = 0` at the bottom row of the texture image).
+    pub fn texcoords(&self) -> Option<Vec<[f32; 2]>> {
+        let [u, v] = [["u", "v"], ["s", "t"], ["texture_u", "texture_v"]]
+            .iter()
+            .find_map(|names| Some([self.property(names[0])?, self.property(names[1])?]))?;
+        Some(u.values.iter().zip(&v.values).map(|(&a, &b)| [a as f32, b as f32]).collect())
+    }
+
     /// Axis-aligned bounds `(min, max)`; `None` for an empty mesh.
     pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
         let first = *self.positions.first()?;
