@@ -19,3 +19,5 @@ RMVP_BENCH_MESH="$mesh" RMVP_BENCH_EXPORT="$out" cargo bench --quiet -p rmvp-ren
 rust=$(awk '/^rust_s_per_view/ {print $2}' "$out/rust.txt")
 mitsuba=$(awk '/^mitsuba_s_per_view/ {print $2}' "$out/mitsuba.txt")
 awk -v r="$rust" -v m="$mitsuba" 'BEGIN { printf "rmvp %.3f s per view, Mitsuba %.3f s per view (after its JIT): rmvp takes %.2fx its time\n", r, m, r/m }'
+echo "BVH against parry3d (single thread, same rays):"
+(cd bench/bvh_compare && cargo run --release --quiet -- "$mesh")
