@@ -20,7 +20,7 @@ pub mod rng;
 
 pub use envmap::EnvMap;
 pub use object::Object;
-pub use renderer::{render_view, RenderedView, Settings};
+pub use renderer::{geometry_maps, render_view, GeometryMaps, RenderedView, Settings};
 
 /// The built-in object: Keenan Crane's "spot" (public domain), inside the unit sphere, +Y up.
 pub fn default_mesh() -> rmvp_dataset::Mesh {

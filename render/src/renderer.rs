@@ -44,11 +44,7 @@ pub fn render_view(object: &Object, env: &EnvMap, camera: &Camera, settings: Set
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut s = [Image::new(w, h, 3), Image::new(w, h, 3), Image::new(w, h, 3)];
     let mut mask = Image::new(w, h, 1);
-    let mut depth = Image::new(w, h, 1);
-    let mut normals = Image::new(w, h, 3);
     let [s0, s1, s2] = &mut s;
-    let r_row3 = |m: &nalgebra::Matrix3<f64>, k: usize| Vec3::new(m[(k, 0)] as f32, m[(k, 1)] as f32, m[(k, 2)] as f32);
-    let camera_z = r_row3(&camera.r, 2);
     let camera_center = Vec3::from_f64(&camera.center().coords);
     let rays = RayGenerator::new(camera);
     s0.data_mut()
@@ -56,18 +52,11 @@ pub fn render_view(object: &Object, env: &EnvMap, camera: &Camera, settings: Set
         .zip(s1.data_mut().par_chunks_mut(3 * w))
         .zip(s2.data_mut().par_chunks_mut(3 * w))
         .zip(mask.data_mut().par_chunks_mut(w))
-        .zip(depth.data_mut().par_chunks_mut(w))
-        .zip(normals.data_mut().par_chunks_mut(3 * w))
         .enumerate()
-        .for_each(|(j, (((((r0, r1), r2), m), d), n))| {
+        .for_each(|(j, (((r0, r1), r2), m))| {
             for i in 0..w {
                 let mut rng = Rng::for_pixel(settings.seed, view, (j * w + i) as u64);
                 let centre = camera.pixel_ray(i as u32, j as u32);
-                if let Some(hit) = object.intersect(camera_center, Vec3::from_f64(&centre.direction)) {
-                    d[i] = (hit.p - camera_center).dot(camera_z);
-                    let normal = hit.n;
-                    n[3 * i..3 * i + 3].copy_from_slice(&[normal.x, normal.y, normal.z]);
-                }
                 // The pixel's Stokes frame (it turns by far less than a degree across a pixel).
                 let (x, y) = camera.stokes_frame(&centre.direction);
                 let (x, y) = (Vec3::from_f64(&x), Vec3::from_f64(&y));
@@ -100,7 +89,45 @@ pub fn render_view(object: &Object, env: &EnvMap, camera: &Camera, settings: Set
             }
         });
     let [s0, s1, s2] = s;
+    let GeometryMaps { depth, normals, .. } = geometry_maps(object, camera);
     RenderedView { stokes: Stokes { s0, s1, s2 }, mask, depth, normals }
+}
+
+/// What the ray through each pixel's centre hits.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeometryMaps {
+    /// 255 where the centre ray hits the object.
+    pub mask: Image<u8>,
+    /// z-depth of the hit; 0 on background.
+    pub depth: Image<f32>,
+    /// World-frame shading normal at the hit (facing the camera); 0 on background.
+    pub normals: Image<f32>,
+}
+
+/// Ray-cast the pixel centres of a camera: mask, depth and normal maps.
+pub fn geometry_maps(object: &Object, camera: &Camera) -> GeometryMaps {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let mut mask = Image::new(w, h, 1);
+    let mut depth = Image::new(w, h, 1);
+    let mut normals = Image::new(w, h, 3);
+    let camera_z = Vec3::new(camera.r[(2, 0)] as f32, camera.r[(2, 1)] as f32, camera.r[(2, 2)] as f32);
+    let camera_center = Vec3::from_f64(&camera.center().coords);
+    mask.data_mut()
+        .par_chunks_mut(w)
+        .zip(depth.data_mut().par_chunks_mut(w))
+        .zip(normals.data_mut().par_chunks_mut(3 * w))
+        .enumerate()
+        .for_each(|(j, ((m, d), n))| {
+            for i in 0..w {
+                let ray = camera.pixel_ray(i as u32, j as u32);
+                if let Some(hit) = object.intersect(camera_center, Vec3::from_f64(&ray.direction)) {
+                    m[i] = 255;
+                    d[i] = (hit.p - camera_center).dot(camera_z);
+                    n[3 * i..3 * i + 3].copy_from_slice(&[hit.n.x, hit.n.y, hit.n.z]);
+                }
+            }
+        });
+    GeometryMaps { mask, depth, normals }
 }
 
 /// Camera ray directions in `f32`: through `R^T K^-1 (u, v, 1)` for pinhole cameras, through
