@@ -29,6 +29,10 @@ enum Command {
     Convert(commands::convert::Args),
     /// Render a synthetic polarized capture of a mesh (scene folders and optional raw frames).
     Simulate(commands::simulate::Args),
+    /// Compare a predicted mesh with the ground truth: Chamfer, F-score, normal error per view.
+    Eval(commands::eval::Args),
+    /// Ray cast a mesh's normal maps, masks and depths in every view of a scene.
+    RenderNormals(commands::render_normals::Args),
 }
 
 fn main() {
@@ -43,6 +47,8 @@ fn main() {
         Command::Info(args) => commands::info::run(args),
         Command::Convert(args) => commands::convert::run(args),
         Command::Simulate(args) => commands::simulate::run(args),
+        Command::Eval(args) => commands::eval::run(args),
+        Command::RenderNormals(args) => commands::render_normals::run(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

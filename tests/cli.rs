@@ -227,3 +227,49 @@ fn stokes_command_reproduces_the_fixture_azimuth_map() {
         errors[errors.len() * 99 / 100]
     );
 }
+
+#[test]
+fn eval_and_render_normals_on_a_fixture() {
+    let spot = fixture("spot_nersp");
+    let gt = spot.join("gt/mesh.ply");
+    let tmp = tempfile::tempdir().unwrap();
+    let json: serde_json::Value = serde_json::from_str(&ok(&[
+        "eval",
+        "--pred",
+        s(&gt),
+        "--gt",
+        s(&gt),
+        "--scene",
+        s(&spot),
+        "--json",
+        "--max-samples",
+        "20000",
+        "-o",
+        s(tmp.path()),
+    ]))
+    .unwrap();
+    assert!(json["chamfer"].as_f64().unwrap() < 1e-6, "{json}");
+    assert_eq!(json["fscore"], 1.0);
+    assert!(json["normal_mae_deg"].as_f64().unwrap() < 3.0, "{json}");
+    assert_eq!(json["normal_views"].as_array().unwrap().len(), 8);
+    assert!(tmp.path().join("006_normal_error.png").is_file());
+    let text = ok(&["eval", "--pred", s(&gt), "--gt", s(&gt), "--max-samples", "1000"]);
+    assert!(text.contains("chamfer") && text.contains("F-score"), "{text}");
+
+    let out = tmp.path().join("normals");
+    ok(&["render-normals", "--mesh", s(&gt), "--scene", s(&spot), "-o", s(&out)]);
+    let ours = rmvp_dataset::io::exr::read_exr(&out.join("007_normal.exr"), &["N.X", "N.Y", "N.Z"]).unwrap();
+    let theirs = rmvp_dataset::io::exr::read_exr(&spot.join("gt/normal/007.exr"), &["N.X", "N.Y", "N.Z"]).unwrap();
+    let mut errors: Vec<f64> = ours
+        .data()
+        .chunks_exact(3)
+        .zip(theirs.data().chunks_exact(3))
+        .filter(|(a, b)| a.iter().any(|v| *v != 0.0) && b.iter().any(|v| *v != 0.0))
+        .map(|(a, b)| ((a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) as f64).clamp(-1.0, 1.0).acos().to_degrees())
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    assert!(errors.len() > 1000 && errors[errors.len() / 2] < 1.0, "median {}", errors[errors.len() / 2]);
+    assert!(out.join("007_mask.png").is_file() && out.join("007_depth.exr").is_file());
+    let err = fails(&["eval", "--pred", s(&spot.join("nope.ply")), "--gt", s(&gt)]);
+    assert!(err.contains("nope.ply"), "{err}");
+}

@@ -17,6 +17,7 @@ pub mod pbrdf;
 pub mod renderer;
 pub mod rig;
 pub mod rng;
+pub mod shapes;
 
 pub use envmap::EnvMap;
 pub use object::Object;

@@ -3,7 +3,9 @@
 pub mod convert;
 pub mod demo;
 pub mod demosaic;
+pub mod eval;
 pub mod info;
+pub mod render_normals;
 pub mod simulate;
 pub mod stokes;
 

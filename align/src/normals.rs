@@ -1,0 +1,71 @@
+//! Normal angular error of a predicted mesh in the views of a scene: its normals are ray cast
+//! at every pixel centre and compared with the scene's ground-truth normal maps over the
+//! pixels where both the ground-truth mask and the prediction cover the object.
+
+use rayon::prelude::*;
+use rmvp_dataset::{Error, Image, Mesh, Result, Scene};
+use rmvp_render::pbrdf::{Interface, Lobes};
+use rmvp_render::{geometry_maps, Object};
+use serde::Serialize;
+
+/// The error in one view.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ViewNormalError {
+    /// View name.
+    pub view: String,
+    /// Mean angle between predicted and ground-truth normals, degrees.
+    pub mae_deg: f64,
+    /// Pixels compared.
+    pub pixels: usize,
+    /// Per-pixel error in degrees (`NaN` where not compared).
+    #[serde(skip)]
+    pub error_map: Image<f32>,
+}
+
+/// The error over a scene's views.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NormalReport {
+    /// Per view, in scene order (views without ground-truth normals are skipped).
+    pub views: Vec<ViewNormalError>,
+    /// Mean of the per-view errors, degrees.
+    pub mean_mae_deg: f64,
+}
+
+/// Ray cast `pred` in every view of `scene` that has ground-truth normals and compare.
+pub fn normal_errors(pred: &Mesh, scene: &Scene) -> Result<NormalReport> {
+    let object = Object::new(pred, Interface::Dielectric(1.5), Lobes::Plastic)?;
+    let views: Vec<ViewNormalError> = scene
+        .views
+        .par_iter()
+        .filter(|v| v.normals.is_some())
+        .map(|view| {
+            let gt = view.normals.as_ref().expect("filtered");
+            let ours = geometry_maps(&object, &view.camera);
+            let (w, h) = gt.size();
+            let mut error_map = Image::from_vec(w, h, 1, vec![f32::NAN; w * h])?;
+            let (mut sum, mut pixels) = (0.0f64, 0usize);
+            for k in 0..w * h {
+                let in_gt = view.mask.as_ref().is_none_or(|m| m.data()[k] > 127);
+                let (a, b) = (&ours.normals.data()[3 * k..3 * k + 3], &gt.data()[3 * k..3 * k + 3]);
+                let gt_len = (b[0] * b[0] + b[1] * b[1] + b[2] * b[2]).sqrt();
+                if !in_gt || ours.mask.data()[k] == 0 || gt_len < 0.5 {
+                    continue;
+                }
+                let cos = ((a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / gt_len).clamp(-1.0, 1.0) as f64;
+                let angle = cos.acos().to_degrees();
+                error_map.data_mut()[k] = angle as f32;
+                sum += angle;
+                pixels += 1;
+            }
+            if pixels == 0 {
+                return Err(Error::invalid(format!("view {}: the prediction covers no ground-truth pixel", view.name)));
+            }
+            Ok(ViewNormalError { view: view.name.clone(), mae_deg: sum / pixels as f64, pixels, error_map })
+        })
+        .collect::<Result<_>>()?;
+    if views.is_empty() {
+        return Err(Error::invalid("the scene has no ground-truth normal maps"));
+    }
+    let mean_mae_deg = views.iter().map(|v| v.mae_deg).sum::<f64>() / views.len() as f64;
+    Ok(NormalReport { views, mean_mae_deg })
+}

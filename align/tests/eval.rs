@@ -1,0 +1,104 @@
+//! Evaluation against known answers: identical meshes, concentric spheres, a mesh against its
+//! own normal maps, and the fixtures' ground-truth normals.
+
+use rmvp_align::{normal_errors, surface_metrics, SurfaceOptions};
+use rmvp_dataset::layout::read_scene;
+use rmvp_dataset::Mesh;
+use rmvp_render::pbrdf::{Interface, Lobes};
+use rmvp_render::shapes::icosphere;
+use rmvp_render::{geometry_maps, Object};
+use std::path::{Path, PathBuf};
+
+fn spot_fixture() -> PathBuf {
+    let root = std::env::var_os("RMVP_FIXTURES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/fixtures"));
+    let dir = root.join("spot_nersp");
+    assert!(dir.is_dir(), "fixture {} missing; set RMVP_FIXTURES", dir.display());
+    dir
+}
+
+fn scaled(mesh: &Mesh, s: f32) -> Mesh {
+    Mesh { positions: mesh.positions.iter().map(|p| p.map(|v| v * s)).collect(), ..mesh.clone() }
+}
+
+#[test]
+fn identical_meshes_are_at_distance_zero() {
+    let sphere = icosphere(4);
+    let m = surface_metrics(&sphere, &sphere, &SurfaceOptions { max_samples: 20_000, ..Default::default() }).unwrap();
+    assert!(m.chamfer < 1e-6 && m.accuracy < 1e-6 && m.completeness < 1e-6, "{m:?}");
+    assert_eq!((m.precision, m.recall, m.fscore), (1.0, 1.0, 1.0));
+}
+
+#[test]
+fn concentric_spheres_are_their_radii_apart() {
+    // Points on the sphere of radius 1.01 lie 0.01 from the unit sphere, and back. Tessellated,
+    // the facet planes of both sit at the same fraction of their radius, so the distance
+    // between them is 0.01 cos(facet angle): within 2e-5 of 0.01 at level 5.
+    let unit = icosphere(5);
+    let m = surface_metrics(
+        &scaled(&unit, 1.01),
+        &unit,
+        &SurfaceOptions { max_samples: 50_000, threshold: Some(0.005), ..Default::default() },
+    )
+    .unwrap();
+    assert!(
+        (m.accuracy - 0.01).abs() < 2e-4 && (m.completeness - 0.01).abs() < 2e-4 && (m.chamfer - 0.01).abs() < 2e-4,
+        "{m:?}"
+    );
+    assert_eq!((m.precision, m.recall), (0.0, 0.0), "0.01 apart, threshold 0.005");
+    // Capped distances and a looser threshold.
+    let capped = surface_metrics(
+        &scaled(&unit, 1.01),
+        &unit,
+        &SurfaceOptions { max_samples: 5_000, max_distance: Some(0.004), threshold: Some(0.02), ..Default::default() },
+    )
+    .unwrap();
+    assert!((capped.chamfer - 0.004).abs() < 1e-9 && capped.fscore == 1.0, "{capped:?}");
+    // The default threshold is 1 % of the ground truth's bounding-box diagonal.
+    let default = surface_metrics(&unit, &unit, &SurfaceOptions { max_samples: 100, ..Default::default() }).unwrap();
+    assert!((default.threshold - 0.01 * 12f64.sqrt()).abs() < 1e-6, "{}", default.threshold);
+}
+
+#[test]
+fn a_mesh_has_no_normal_error_against_its_own_normal_maps() {
+    let mut scene = read_scene(&spot_fixture()).unwrap();
+    let mesh = scene.mesh.clone().unwrap();
+    let object = Object::new(&mesh, Interface::Dielectric(1.5), Lobes::Plastic).unwrap();
+    for view in &mut scene.views {
+        let maps = geometry_maps(&object, &view.camera);
+        view.normals = Some(maps.normals);
+        view.mask = Some(maps.mask);
+    }
+    let report = normal_errors(&mesh, &scene).unwrap();
+    assert_eq!(report.views.len(), 8);
+    // Zero up to f32 rounding, which acos turns into up to 0.026 degrees near cos = 1.
+    assert!(report.mean_mae_deg < 0.03 && report.views.iter().all(|v| v.pixels > 1000), "{}", report.mean_mae_deg);
+    // A rotated copy is wrong by about its rotation.
+    let turned = Mesh {
+        positions: mesh
+            .positions
+            .iter()
+            .map(|p| [p[0] * 0.9848 - p[2] * 0.1736, p[1], p[0] * 0.1736 + p[2] * 0.9848])
+            .collect(),
+        normals: mesh
+            .normals
+            .as_ref()
+            .map(|n| n.iter().map(|p| [p[0] * 0.9848 - p[2] * 0.1736, p[1], p[0] * 0.1736 + p[2] * 0.9848]).collect()),
+        ..mesh.clone()
+    };
+    let report = normal_errors(&turned, &scene).unwrap();
+    assert!(report.mean_mae_deg > 5.0, "a 10-degree turn gives {}", report.mean_mae_deg);
+}
+
+#[test]
+fn ray_cast_normals_agree_with_the_fixture_normal_maps() {
+    let scene = read_scene(&spot_fixture()).unwrap();
+    let report = normal_errors(scene.mesh.as_ref().unwrap(), &scene).unwrap();
+    for v in &report.views {
+        let mut errors: Vec<f32> = v.error_map.data().iter().copied().filter(|e| !e.is_nan()).collect();
+        errors.sort_by(f32::total_cmp);
+        let median = errors[errors.len() / 2];
+        assert!(median < 1.0, "view {}: median normal error {median} degrees", v.view);
+    }
+}
