@@ -30,6 +30,6 @@ if ((${#missing[@]})); then
 fi
 
 if ! command -v cargo >/dev/null 2>&1; then
-  echo "rmvp: cargo not found; install a Rust toolchain (1.85 or newer, e.g. with rustup) first" >&2
+  echo "rmvp: cargo not found; install a Rust toolchain (1.89 or newer, e.g. with rustup) first" >&2
   exit 1
 fi

@@ -18,6 +18,11 @@ fn triangle_area(mesh: &Mesh, f: &[u32; 3]) -> f64 {
 /// `count` points distributed uniformly over the surface (triangles drawn by area, points
 /// uniform inside them), deterministic in `seed`. Empty for a mesh without area.
 pub fn sample_surface(mesh: &Mesh, count: usize, seed: u64) -> Vec<[f32; 3]> {
+    sample_surface_with_faces(mesh, count, seed).into_iter().map(|(p, _)| p).collect()
+}
+
+/// [`sample_surface`], each point with the index of the face it lies on.
+pub fn sample_surface_with_faces(mesh: &Mesh, count: usize, seed: u64) -> Vec<([f32; 3], usize)> {
     let mut cdf = Vec::with_capacity(mesh.faces.len());
     let mut total = 0.0;
     for f in &mesh.faces {
@@ -38,7 +43,7 @@ pub fn sample_surface(mesh: &Mesh, count: usize, seed: u64) -> Vec<[f32; 3]> {
             if u + v > 1.0 {
                 (u, v) = (1.0 - u, 1.0 - v);
             }
-            [0, 1, 2].map(|k| a[k] + u * (b[k] - a[k]) + v * (c[k] - a[k]))
+            ([0, 1, 2].map(|k| a[k] + u * (b[k] - a[k]) + v * (c[k] - a[k])), face)
         })
         .collect()
 }

@@ -1,0 +1,411 @@
+//! Similarity alignment (rotation, translation and uniform scale) of a scan onto a target
+//! surface: a coarse multistart over principal axes and rotations, then point-to-plane ICP
+//! solving all 7 degrees of freedom by Gauss-Newton with robust (Geman-McClure) weights, a
+//! shrinking correspondence distance and Levenberg damping for flat or symmetric shapes.
+//!
+//! Work happens in a normalised frame (target centroid at the origin, RMS radius 1) so that the
+//! thresholds and the damping mean the same for millimetres and metres.
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use nalgebra::{Matrix3, Matrix4, Rotation3, SMatrix, SVector, Vector3};
+use rayon::prelude::*;
+use rmvp_dataset::{Error, Mesh, Result};
+use serde::Serialize;
+
+/// A similarity `x -> s R x + t`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Similarity {
+    /// Rotation.
+    pub r: Matrix3<f64>,
+    /// Translation.
+    pub t: Vector3<f64>,
+    /// Uniform scale.
+    pub s: f64,
+}
+
+impl Similarity {
+    /// The identity.
+    pub fn identity() -> Self {
+        Self { r: Matrix3::identity(), t: Vector3::zeros(), s: 1.0 }
+    }
+
+    /// Apply to a point.
+    pub fn apply(&self, p: &Vector3<f64>) -> Vector3<f64> {
+        self.s * (self.r * p) + self.t
+    }
+
+    /// `self` after `other`: `x -> self(other(x))`.
+    pub fn compose(&self, other: &Similarity) -> Similarity {
+        Similarity { r: self.r * other.r, t: self.s * (self.r * other.t) + self.t, s: self.s * other.s }
+    }
+
+    /// The inverse similarity.
+    pub fn inverse(&self) -> Similarity {
+        let r = self.r.transpose();
+        Similarity { r, t: -(r * self.t) / self.s, s: 1.0 / self.s }
+    }
+
+    /// As a 4x4 homogeneous matrix.
+    pub fn matrix(&self) -> Matrix4<f64> {
+        let mut m = Matrix4::identity();
+        m.fixed_view_mut::<3, 3>(0, 0).copy_from(&(self.r * self.s));
+        m.fixed_view_mut::<3, 1>(0, 3).copy_from(&self.t);
+        m
+    }
+
+    /// Rotation angle in degrees (robust to rounding near the identity).
+    pub fn angle_deg(&self) -> f64 {
+        ((self.r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
+    }
+}
+
+/// Settings of the alignment.
+#[derive(Clone, Debug, PartialEq)]
+pub struct IcpOptions {
+    /// Run the coarse multistart (off: start from `initial`).
+    pub coarse: bool,
+    /// Starting guess when `coarse` is off.
+    pub initial: Similarity,
+    /// Scan points used by the fine stage at most (random subsample).
+    pub max_scan_points: usize,
+    /// Points sampled on the target surface (at least its vertex count).
+    pub target_samples: usize,
+    /// Fine iterations.
+    pub iterations: usize,
+    /// Seed of the subsampling.
+    pub seed: u64,
+}
+
+impl Default for IcpOptions {
+    fn default() -> Self {
+        Self {
+            coarse: true,
+            initial: Similarity::identity(),
+            max_scan_points: 50_000,
+            target_samples: 200_000,
+            iterations: 60,
+            seed: 0,
+        }
+    }
+}
+
+/// The result of an alignment.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Alignment {
+    /// Scan to target.
+    pub transform: Similarity,
+    /// RMS point-to-plane residual of the inliers, in target units.
+    pub rms: f64,
+    /// Median absolute point-to-point distance of all scan points after alignment.
+    pub median_distance: f64,
+    /// Share of scan points within the final correspondence distance.
+    pub inlier_ratio: f64,
+}
+
+/// A target: points with unit normals and a k-d tree over them.
+struct Target {
+    points: Vec<[f32; 3]>,
+    normals: Vec<[f32; 3]>,
+    tree: ImmutableKdTree<f32, 3>,
+}
+
+impl Target {
+    /// Nearest target point: (index, squared distance).
+    fn nearest(&self, p: &Vector3<f64>) -> (usize, f64) {
+        let q = [p.x as f32, p.y as f32, p.z as f32];
+        let hit = self.tree.query(&q).nearest_one::<SquaredEuclidean<f32>>().execute();
+        (hit.item as usize, hit.distance as f64)
+    }
+}
+
+/// Sample the target surface (faces) with face normals, or take its vertices and normals.
+fn target_from_mesh(mesh: &Mesh, samples: usize, seed: u64, normalize: &Similarity) -> Result<Target> {
+    let (points, normals): (Vec<[f32; 3]>, Vec<[f32; 3]>) = if !mesh.faces.is_empty() {
+        let count = samples.max(mesh.positions.len());
+        let located = crate::sampling::sample_surface_with_faces(mesh, count, seed);
+        located
+            .into_iter()
+            .map(|(p, face)| {
+                let [a, b, c] = mesh.faces[face].map(|i| Vector3::from(mesh.positions[i as usize].map(|v| v as f64)));
+                let n = (b - a).cross(&(c - a)).normalize();
+                (p, [n.x as f32, n.y as f32, n.z as f32])
+            })
+            .unzip()
+    } else if let Some(normals) = &mesh.normals {
+        (mesh.positions.clone(), normals.clone())
+    } else {
+        return Err(Error::invalid("the target needs faces or vertex normals"));
+    };
+    let points: Vec<[f32; 3]> = points
+        .iter()
+        .map(|p| {
+            let q = normalize.apply(&Vector3::from(p.map(|v| v as f64)));
+            [q.x as f32, q.y as f32, q.z as f32]
+        })
+        .collect();
+    let tree = ImmutableKdTree::new_from_slice(&points).map_err(|e| Error::invalid(format!("k-d tree: {e:?}")))?;
+    Ok(Target { points, normals, tree })
+}
+
+/// Centroid and RMS radius.
+fn centroid_and_radius(points: &[Vector3<f64>]) -> (Vector3<f64>, f64) {
+    let c = points.iter().sum::<Vector3<f64>>() / points.len() as f64;
+    let r = (points.iter().map(|p| (p - c).norm_squared()).sum::<f64>() / points.len() as f64).sqrt();
+    (c, r)
+}
+
+/// Principal axes (columns, descending variance) of centred points.
+fn principal_axes(points: &[Vector3<f64>], c: &Vector3<f64>) -> Matrix3<f64> {
+    let cov = points.iter().map(|p| (p - c) * (p - c).transpose()).sum::<Matrix3<f64>>();
+    let eig = cov.symmetric_eigen();
+    let mut order = [0usize, 1, 2];
+    order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+    let mut axes = Matrix3::from_columns(&order.map(|k| eig.eigenvectors.column(k).into_owned()));
+    if axes.determinant() < 0.0 {
+        axes.set_column(2, &-axes.column(2));
+    }
+    axes
+}
+
+/// Point-to-plane Gauss-Newton refinement of `start` (normalised frame) on `scan` points, the
+/// scale held fixed when `fixed_scale`.
+fn refine(
+    target: &Target,
+    scan: &[Vector3<f64>],
+    start: Similarity,
+    iterations: usize,
+    (radius_start, radius_end): (f64, f64),
+    fixed_scale: bool,
+) -> Similarity {
+    let mut current = start;
+    for it in 0..iterations {
+        // Correspondence distance shrinks geometrically from radius_start to radius_end.
+        let f = it as f64 / (iterations.max(2) - 1) as f64;
+        let radius = radius_start * (radius_end / radius_start).powf(f);
+        let pairs: Vec<(Vector3<f64>, Vector3<f64>, Vector3<f64>)> = scan
+            .par_iter()
+            .filter_map(|p| {
+                let x = current.apply(p);
+                let (k, d2) = target.nearest(&x);
+                (d2 <= radius * radius).then(|| {
+                    let q = Vector3::from(target.points[k].map(|v| v as f64));
+                    let n = Vector3::from(target.normals[k].map(|v| v as f64));
+                    (x, q, n)
+                })
+            })
+            .collect();
+        if pairs.len() < 7 {
+            break;
+        }
+        // Robust scale from the median absolute residual.
+        let mut abs: Vec<f64> = pairs.iter().map(|(x, q, n)| n.dot(&(x - q)).abs()).collect();
+        let mid = abs.len() / 2;
+        let mad = *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
+        let c2 = (3.0 * 1.4826 * mad).max(1e-9).powi(2);
+        let (mut h, mut g) = (SMatrix::<f64, 7, 7>::zeros(), SVector::<f64, 7>::zeros());
+        for (x, q, n) in &pairs {
+            let r = n.dot(&(x - q));
+            let w = c2 * c2 / (c2 + r * r).powi(2); // Geman-McClure
+                                                    // d r / d(sigma, omega, tau) for x -> (1 + sigma) x + omega x x + tau.
+            let j = SVector::<f64, 7>::from_column_slice(&[
+                n.dot(x),
+                x.y * n.z - x.z * n.y,
+                x.z * n.x - x.x * n.z,
+                x.x * n.y - x.y * n.x,
+                n.x,
+                n.y,
+                n.z,
+            ]);
+            h += w * j * j.transpose();
+            g += w * r * j;
+        }
+        if fixed_scale {
+            // Pin sigma to zero.
+            h.row_mut(0).fill(0.0);
+            h.column_mut(0).fill(0.0);
+            h[(0, 0)] = 1.0;
+            g[0] = 0.0;
+        }
+        let damping = 1e-6 * h.trace() / 7.0 + 1e-12;
+        let Some(step) = (h + SMatrix::<f64, 7, 7>::identity() * damping).cholesky().map(|c| c.solve(&-g)) else {
+            break;
+        };
+        let rotation = Rotation3::new(Vector3::new(step[1], step[2], step[3]));
+        let delta = Similarity { r: *rotation.matrix(), t: Vector3::new(step[4], step[5], step[6]), s: step[0].exp() };
+        current = delta.compose(&current);
+        if step.norm() < 1e-10 {
+            break;
+        }
+    }
+    current
+}
+
+/// Symmetric truncated distance between a transformed scan sample and a target sample
+/// (normalised frame): mean of `min(d, cap)` both ways. A shrunken or misplaced scan cannot
+/// score well, since the target side measures coverage.
+fn symmetric_score(
+    target: &Target,
+    target_sample: &[Vector3<f64>],
+    scan: &[Vector3<f64>],
+    transform: &Similarity,
+) -> f64 {
+    const CAP: f64 = 0.1;
+    let moved: Vec<[f32; 3]> =
+        scan.iter().map(|p| transform.apply(p)).map(|q| [q.x as f32, q.y as f32, q.z as f32]).collect();
+    let Ok(tree) = ImmutableKdTree::<f32, 3>::new_from_slice(&moved) else { return f64::INFINITY };
+    let forward: f64 = moved
+        .iter()
+        .map(|q| target.nearest(&Vector3::new(q[0] as f64, q[1] as f64, q[2] as f64)).1.sqrt().min(CAP))
+        .sum();
+    let backward: f64 = target_sample
+        .iter()
+        .map(|p| {
+            let hit =
+                tree.query(&[p.x as f32, p.y as f32, p.z as f32]).nearest_one::<SquaredEuclidean<f32>>().execute();
+            (hit.distance as f64).sqrt().min(CAP)
+        })
+        .sum();
+    0.5 * (forward / moved.len() as f64 + backward / target_sample.len() as f64)
+}
+
+/// Align `scan` (points; a mesh's vertices) onto the surface of `target`.
+pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignment> {
+    if scan.positions.len() < 10 {
+        return Err(Error::invalid("the scan has fewer than 10 points"));
+    }
+    let target_vertices: Vec<Vector3<f64>> =
+        target.positions.iter().map(|p| Vector3::from(p.map(|v| v as f64))).collect();
+    let (tc, tr) = centroid_and_radius(&target_vertices);
+    // Normalised frame: target centroid at the origin, target RMS radius 1.
+    let normalize = Similarity { r: Matrix3::identity(), t: -tc / tr, s: 1.0 / tr };
+    let tgt = target_from_mesh(target, options.target_samples, options.seed, &normalize)?;
+    let mut rng = rmvp_render::rng::Rng::for_pixel(options.seed, 1, 0);
+    let mut subsample = |n: usize| -> Vec<Vector3<f64>> {
+        let take = n.min(scan.positions.len());
+        (0..take)
+            .map(|_| Vector3::from(scan.positions[rng.next_u32() as usize % scan.positions.len()].map(|v| v as f64)))
+            .collect()
+    };
+    let fine_points = subsample(options.max_scan_points);
+    let coarse_points = subsample(2_000);
+
+    let start = if options.coarse {
+        // Candidates: centroids and RMS radii matched, principal axes matched with every proper
+        // sign flip, then each turned by the 24 rotations of the cube; scored by a short ICP.
+        let (sc, sr) = centroid_and_radius(&fine_points);
+        let (scan_axes, target_axes) = (principal_axes(&fine_points, &sc), principal_axes(&target_vertices, &tc));
+        let flips = [[1.0, 1.0, 1.0], [1.0, -1.0, -1.0], [-1.0, 1.0, -1.0], [-1.0, -1.0, 1.0]];
+        let mut candidates = Vec::new();
+        for flip in flips {
+            let d = Matrix3::from_diagonal(&Vector3::from(flip));
+            let r = target_axes * d * scan_axes.transpose();
+            for turn in cube_rotations() {
+                let r = turn * r;
+                // scan -> normalised target frame: x -> (1/sr) r (x - sc)
+                candidates.push(Similarity { r, t: -(r * sc) / sr, s: 1.0 / sr });
+            }
+        }
+        let target_sample: Vec<Vector3<f64>> =
+            (0..2_000).map(|k| Vector3::from(tgt.points[k * tgt.points.len() / 2_000].map(|v| v as f64))).collect();
+        let scored: Vec<(Similarity, f64)> = candidates
+            .par_iter()
+            .map(|c| {
+                let refined = refine(&tgt, &coarse_points, *c, 12, (0.5, 0.15), true);
+                (refined, symmetric_score(&tgt, &target_sample, &coarse_points, &refined))
+            })
+            .collect();
+        scored.into_iter().min_by(|a, b| a.1.total_cmp(&b.1)).map(|(s, _)| s).expect("candidates")
+    } else {
+        normalize.compose(&options.initial)
+    };
+    let fine = refine(&tgt, &fine_points, start, options.iterations, (0.2, 0.02), false);
+    // Back to target units: scan -> normalised -> target.
+    let transform = normalize.inverse().compose(&fine);
+    // Statistics over all scan points, in target units.
+    let final_radius = 0.02 * tr;
+    let residuals: Vec<(f64, f64)> = scan
+        .positions
+        .par_iter()
+        .map(|p| {
+            let x = fine.apply(&Vector3::from(p.map(|v| v as f64)));
+            let (k, d2) = tgt.nearest(&x);
+            let n = Vector3::from(tgt.normals[k].map(|v| v as f64));
+            let q = Vector3::from(tgt.points[k].map(|v| v as f64));
+            (d2.sqrt() * tr, n.dot(&(x - q)) * tr)
+        })
+        .collect();
+    let inliers: Vec<f64> = residuals.iter().filter(|(d, _)| *d <= final_radius).map(|(_, r)| *r).collect();
+    let mut distances: Vec<f64> = residuals.iter().map(|(d, _)| *d).collect();
+    let mid = distances.len() / 2;
+    let median_distance = *distances.select_nth_unstable_by(mid, f64::total_cmp).1;
+    Ok(Alignment {
+        transform,
+        rms: (inliers.iter().map(|r| r * r).sum::<f64>() / inliers.len().max(1) as f64).sqrt(),
+        median_distance,
+        inlier_ratio: inliers.len() as f64 / residuals.len() as f64,
+    })
+}
+
+/// The 24 rotations mapping the cube onto itself.
+fn cube_rotations() -> Vec<Matrix3<f64>> {
+    let axes: [Vector3<f64>; 6] =
+        [Vector3::x(), Vector3::y(), Vector3::z(), -Vector3::x(), -Vector3::y(), -Vector3::z()];
+    let mut out = Vec::with_capacity(24);
+    for a in &axes {
+        for b in &axes {
+            if a.dot(b).abs() < 0.5 {
+                out.push(Matrix3::from_columns(&[*a, *b, a.cross(b)]));
+            }
+        }
+    }
+    out
+}
+
+/// JSON form of an alignment result.
+#[derive(Clone, Debug, Serialize)]
+pub struct AlignmentRecord {
+    /// Rotation, row-major.
+    pub r: [[f64; 3]; 3],
+    /// Translation.
+    pub t: [f64; 3],
+    /// Scale.
+    pub s: f64,
+    /// 4x4 matrix, row-major.
+    pub matrix: [[f64; 4]; 4],
+    /// The inverse (target to scan), same fields.
+    pub inverse: Option<Box<AlignmentRecord>>,
+}
+
+impl From<&Similarity> for AlignmentRecord {
+    fn from(s: &Similarity) -> Self {
+        let m = s.matrix();
+        AlignmentRecord {
+            r: [0, 1, 2].map(|i| [0, 1, 2].map(|j| s.r[(i, j)])),
+            t: [s.t.x, s.t.y, s.t.z],
+            s: s.s,
+            matrix: [0, 1, 2, 3].map(|i| [0, 1, 2, 3].map(|j| m[(i, j)])),
+            inverse: None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn similarity_algebra() {
+        let a = Similarity {
+            r: *Rotation3::new(Vector3::new(0.1, -0.4, 0.3)).matrix(),
+            t: Vector3::new(1.0, 2.0, -3.0),
+            s: 1.7,
+        };
+        let p = Vector3::new(0.3, -0.2, 0.9);
+        assert!((a.inverse().apply(&a.apply(&p)) - p).norm() < 1e-12);
+        assert!((a.compose(&a.inverse()).matrix() - Matrix4::identity()).norm() < 1e-12);
+        let m = a.matrix();
+        assert!(((m * p.push(1.0)).xyz() - a.apply(&p)).norm() < 1e-12);
+        assert_eq!(cube_rotations().len(), 24);
+        assert!(cube_rotations().iter().all(|r| (r.determinant() - 1.0).abs() < 1e-12));
+    }
+}
