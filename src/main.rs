@@ -33,6 +33,8 @@ enum Command {
     Eval(commands::eval::Args),
     /// Ray cast a mesh's normal maps, masks and depths in every view of a scene.
     RenderNormals(commands::render_normals::Args),
+    /// Align a scan onto a target mesh by a similarity (ICP with scale).
+    Align(commands::align::Args),
 }
 
 fn main() {
@@ -49,6 +51,7 @@ fn main() {
         Command::Simulate(args) => commands::simulate::run(args),
         Command::Eval(args) => commands::eval::run(args),
         Command::RenderNormals(args) => commands::render_normals::run(args),
+        Command::Align(args) => commands::align::run(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

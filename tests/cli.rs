@@ -273,3 +273,44 @@ fn eval_and_render_normals_on_a_fixture() {
     let err = fails(&["eval", "--pred", s(&spot.join("nope.ply")), "--gt", s(&gt)]);
     assert!(err.contains("nope.ply"), "{err}");
 }
+
+#[test]
+fn align_recovers_a_moved_scaled_copy() {
+    let spot = fixture("spot_nersp").join("gt/mesh.ply");
+    let mesh = rmvp_dataset::Mesh::read(&spot).unwrap();
+    // The scan: the mesh turned 30 degrees about y, scaled by 1.1 and moved.
+    let (c, s_) = (30f32.to_radians().cos(), 30f32.to_radians().sin());
+    let moved = rmvp_dataset::Mesh {
+        positions: mesh
+            .positions
+            .iter()
+            .map(|p| [1.1 * (c * p[0] + s_ * p[2]) + 0.3, 1.1 * p[1] - 0.2, 1.1 * (-s_ * p[0] + c * p[2]) + 0.1])
+            .collect(),
+        normals: None,
+        ..mesh
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let scan = tmp.path().join("scan.ply");
+    moved.write(&scan).unwrap();
+    let out = tmp.path().join("aligned");
+    let text = ok(&["align", "--scan", s(&scan), "--to", s(&spot), "-o", s(&out)]);
+    assert!(text.contains("rotation 30.0"), "{text}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("alignment.json")).unwrap()).unwrap();
+    let scale = json["scan_to_target"]["s"].as_f64().unwrap();
+    assert!((scale - 1.0 / 1.1).abs() < 1e-3, "{json}");
+    assert!((json["scan_to_target"]["inverse"]["s"].as_f64().unwrap() - 1.1).abs() < 1e-3);
+    // The aligned scan lies on the target: Chamfer about zero.
+    let eval: serde_json::Value = serde_json::from_str(&ok(&[
+        "eval",
+        "--pred",
+        s(&out.join("aligned.ply")),
+        "--gt",
+        s(&spot),
+        "--json",
+        "--max-samples",
+        "20000",
+    ]))
+    .unwrap();
+    assert!(eval["chamfer"].as_f64().unwrap() < 1e-3, "{eval}");
+}
