@@ -136,7 +136,7 @@ impl RawFrame {
                 ),
             ));
         }
-        if width % 4 != 0 || height % 4 != 0 {
+        if !width.is_multiple_of(4) || !height.is_multiple_of(4) {
             return Err(Error::frame(source, format!("{width}x{height} is not a whole number of 4x4 mosaic tiles")));
         }
         self.layout = format.family.layout();
