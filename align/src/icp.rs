@@ -233,7 +233,8 @@ fn refine(
         let rotation = Rotation3::new(Vector3::new(step[1], step[2], step[3]));
         let delta = Similarity { r: *rotation.matrix(), t: Vector3::new(step[4], step[5], step[6]), s: step[0].exp() };
         current = delta.compose(&current);
-        if step.norm() < 1e-10 {
+        // Converged: well below the noise of any scan (normalised units, radius 1).
+        if step.norm() < 1e-7 {
             break;
         }
     }
@@ -307,18 +308,29 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
         }
         let target_sample: Vec<Vector3<f64>> =
             (0..2_000).map(|k| Vector3::from(tgt.points[k * tgt.points.len() / 2_000].map(|v| v as f64))).collect();
-        let scored: Vec<(Similarity, f64)> = candidates
-            .par_iter()
-            .map(|c| {
-                let refined = refine(&tgt, &coarse_points, *c, 12, (0.5, 0.15), true);
-                (refined, symmetric_score(&tgt, &target_sample, &coarse_points, &refined))
-            })
-            .collect();
-        scored.into_iter().min_by(|a, b| a.1.total_cmp(&b.1)).map(|(s, _)| s).expect("candidates")
+        // Successive halving: a few iterations for every candidate, more for the best eight.
+        let score_all = |starts: &[Similarity], iterations: usize, radii: (f64, f64)| -> Vec<(Similarity, f64)> {
+            let mut scored: Vec<(Similarity, f64)> = starts
+                .par_iter()
+                .map(|c| {
+                    let refined = refine(&tgt, &coarse_points, *c, iterations, radii, true);
+                    (refined, symmetric_score(&tgt, &target_sample, &coarse_points, &refined))
+                })
+                .collect();
+            scored.sort_by(|a, b| a.1.total_cmp(&b.1));
+            scored
+        };
+        let first = score_all(&candidates, 4, (0.5, 0.3));
+        let best: Vec<Similarity> = first.iter().take(8).map(|(s, _)| *s).collect();
+        score_all(&best, 10, (0.3, 0.1))[0].0
     } else {
         normalize.compose(&options.initial)
     };
-    let fine = refine(&tgt, &fine_points, start, options.iterations, (0.2, 0.02), false);
+    // Coarse to fine: most iterations on a tenth of the points, the last third on all of them.
+    let early = options.iterations * 2 / 3;
+    let few = &fine_points[..fine_points.len().min(10_000)];
+    let fine = refine(&tgt, few, start, early, (0.2, 0.04), false);
+    let fine = refine(&tgt, &fine_points, fine, options.iterations - early, (0.04, 0.02), false);
     // Back to target units: scan -> normalised -> target.
     let transform = normalize.inverse().compose(&fine);
     // Statistics over all scan points, in target units.
