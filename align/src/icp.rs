@@ -110,12 +110,24 @@ struct Target {
 }
 
 impl Target {
-    /// Nearest target point: (index, squared distance).
-    fn nearest(&self, p: &Vector3<f64>) -> (usize, f64) {
-        let q = [p.x as f32, p.y as f32, p.z as f32];
-        let hit = self.tree.query(&q).nearest_one::<SquaredEuclidean<f32>>().execute();
-        (hit.item as usize, hit.distance as f64)
+    /// Nearest target point within `radius`: (index, squared distance).
+    fn nearest_within(&self, p: &Vector3<f64>, radius: f64) -> Option<(usize, f64)> {
+        nearest_within(&self.tree, p, radius)
     }
+}
+
+/// Nearest point of `tree` within `radius` of `p`: (index, squared distance). Bounded queries
+/// stay cheap for points far from every point (misaligned starts, outliers), where an unbounded
+/// nearest-neighbour search visits much of the tree (measured: 0.2 against 25 us).
+fn nearest_within(tree: &ImmutableKdTree<f32, 3>, p: &Vector3<f64>, radius: f64) -> Option<(usize, f64)> {
+    let q = [p.x as f32, p.y as f32, p.z as f32];
+    let r2 = (radius * radius) as f32;
+    let found = tree
+        .query(&q)
+        .nearest_n::<SquaredEuclidean<f32>>(std::num::NonZeroUsize::MIN)
+        .within::<SquaredEuclidean<f32>>(r2)
+        .execute();
+    found.first().map(|hit| (hit.item as usize, hit.distance as f64))
 }
 
 /// Sample the target surface (faces) with face normals, or take its vertices and normals.
@@ -186,12 +198,10 @@ fn refine(
             .par_iter()
             .filter_map(|p| {
                 let x = current.apply(p);
-                let (k, d2) = target.nearest(&x);
-                (d2 <= radius * radius).then(|| {
-                    let q = Vector3::from(target.points[k].map(|v| v as f64));
-                    let n = Vector3::from(target.normals[k].map(|v| v as f64));
-                    (x, q, n)
-                })
+                let (k, _) = target.nearest_within(&x, radius)?;
+                let q = Vector3::from(target.points[k].map(|v| v as f64));
+                let n = Vector3::from(target.normals[k].map(|v| v as f64));
+                Some((x, q, n))
             })
             .collect();
         if pairs.len() < 7 {
@@ -256,16 +266,13 @@ fn symmetric_score(
     let Ok(tree) = ImmutableKdTree::<f32, 3>::new_from_slice(&moved) else { return f64::INFINITY };
     let forward: f64 = moved
         .iter()
-        .map(|q| target.nearest(&Vector3::new(q[0] as f64, q[1] as f64, q[2] as f64)).1.sqrt().min(CAP))
-        .sum();
-    let backward: f64 = target_sample
-        .iter()
-        .map(|p| {
-            let hit =
-                tree.query(&[p.x as f32, p.y as f32, p.z as f32]).nearest_one::<SquaredEuclidean<f32>>().execute();
-            (hit.distance as f64).sqrt().min(CAP)
+        .map(|q| {
+            let p = Vector3::new(q[0] as f64, q[1] as f64, q[2] as f64);
+            target.nearest_within(&p, CAP).map_or(CAP, |(_, d2)| d2.sqrt())
         })
         .sum();
+    let backward: f64 =
+        target_sample.iter().map(|p| nearest_within(&tree, p, CAP).map_or(CAP, |(_, d2)| d2.sqrt())).sum();
     0.5 * (forward / moved.len() as f64 + backward / target_sample.len() as f64)
 }
 
@@ -288,7 +295,7 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
             .collect()
     };
     let fine_points = subsample(options.max_scan_points);
-    let coarse_points = subsample(2_000);
+    let coarse_points = subsample(1_000);
 
     let start = if options.coarse {
         // Candidates: centroids and RMS radii matched, principal axes matched with every proper
@@ -307,8 +314,8 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
             }
         }
         let target_sample: Vec<Vector3<f64>> =
-            (0..2_000).map(|k| Vector3::from(tgt.points[k * tgt.points.len() / 2_000].map(|v| v as f64))).collect();
-        // Successive halving: a few iterations for every candidate, more for the best eight.
+            (0..1_000).map(|k| Vector3::from(tgt.points[k * tgt.points.len() / 1_000].map(|v| v as f64))).collect();
+        // Score every candidate as it stands, refine the best eight, keep the best of those.
         let score_all = |starts: &[Similarity], iterations: usize, radii: (f64, f64)| -> Vec<(Similarity, f64)> {
             let mut scored: Vec<(Similarity, f64)> = starts
                 .par_iter()
@@ -320,7 +327,7 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
             scored.sort_by(|a, b| a.1.total_cmp(&b.1));
             scored
         };
-        let first = score_all(&candidates, 4, (0.5, 0.3));
+        let first = score_all(&candidates, 0, (0.5, 0.3));
         let best: Vec<Similarity> = first.iter().take(8).map(|(s, _)| *s).collect();
         score_all(&best, 10, (0.3, 0.1))[0].0
     } else {
@@ -333,17 +340,22 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
     let fine = refine(&tgt, &fine_points, fine, options.iterations - early, (0.04, 0.02), false);
     // Back to target units: scan -> normalised -> target.
     let transform = normalize.inverse().compose(&fine);
-    // Statistics over all scan points, in target units.
+    // Statistics over all scan points, in target units; distances beyond half the target's
+    // radius count as that much (the median needs no more).
     let final_radius = 0.02 * tr;
     let residuals: Vec<(f64, f64)> = scan
         .positions
         .par_iter()
         .map(|p| {
             let x = fine.apply(&Vector3::from(p.map(|v| v as f64)));
-            let (k, d2) = tgt.nearest(&x);
-            let n = Vector3::from(tgt.normals[k].map(|v| v as f64));
-            let q = Vector3::from(tgt.points[k].map(|v| v as f64));
-            (d2.sqrt() * tr, n.dot(&(x - q)) * tr)
+            match tgt.nearest_within(&x, 0.5) {
+                Some((k, d2)) => {
+                    let n = Vector3::from(tgt.normals[k].map(|v| v as f64));
+                    let q = Vector3::from(tgt.points[k].map(|v| v as f64));
+                    (d2.sqrt() * tr, n.dot(&(x - q)) * tr)
+                }
+                None => (0.5 * tr, f64::INFINITY),
+            }
         })
         .collect();
     let inliers: Vec<f64> = residuals.iter().filter(|(d, _)| *d <= final_radius).map(|(_, r)| *r).collect();
