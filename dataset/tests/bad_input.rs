@@ -118,6 +118,30 @@ fn ascii_and_binary_ply_round_trip_and_bad_indices_are_caught() {
 }
 
 #[test]
+fn stl_meshes_are_read_and_bad_ones_reported() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("tet.stl");
+    let facet = |n: [f32; 3], v: [[f32; 3]; 3]| {
+        let vs: String = v.iter().map(|p| format!("      vertex {} {} {}\n", p[0], p[1], p[2])).collect();
+        format!("  facet normal {} {} {}\n    outer loop\n{vs}    endloop\n  endfacet\n", n[0], n[1], n[2])
+    };
+    let (a, b, c, d) = ([0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]);
+    let text = format!(
+        "solid tet\n{}{}{}{}endsolid tet\n",
+        facet([0.0, 0.0, -1.0], [a, c, b]),
+        facet([0.0, -1.0, 0.0], [a, b, d]),
+        facet([-1.0, 0.0, 0.0], [a, d, c]),
+        facet([0.577, 0.577, 0.577], [b, c, d])
+    );
+    std::fs::write(&path, text).unwrap();
+    let mesh = Mesh::read(&path).unwrap();
+    assert_eq!((mesh.positions.len(), mesh.faces.len()), (4, 4), "vertices merged by position");
+    let cut = tmp.path().join("cut.stl");
+    truncate(&path, &cut);
+    assert_error_names(Mesh::read(&cut).map(|_| ()).unwrap_err(), &cut, &[]);
+}
+
+#[test]
 fn a_missing_view_file_is_named() {
     let (_tmp, dir) = copy_of_spot();
     let missing = dir.join("s1/0003.npy");

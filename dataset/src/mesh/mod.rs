@@ -1,8 +1,9 @@
 //! Triangle meshes and point clouds with normals, colours and extra per-vertex properties,
-//! read and written as PLY ([`ply`]) and OBJ ([`obj`]).
+//! read and written as PLY ([`ply`]) and OBJ ([`obj`]), read from STL ([`stl`]).
 
 pub mod obj;
 pub mod ply;
+pub mod stl;
 
 use crate::{Error, Result};
 use std::path::Path;
@@ -66,12 +67,15 @@ pub struct Mesh {
 }
 
 impl Mesh {
-    /// Read a mesh by extension: `.ply` or `.obj`.
+    /// Read a mesh by extension: `.ply`, `.obj` or `.stl`.
     pub fn read(path: &Path) -> Result<Self> {
         let mesh = match extension(path).as_str() {
             "ply" => ply::read_ply(path)?,
             "obj" => obj::read_obj(path)?,
-            other => return Err(Error::format(path, format!("unknown mesh format {other:?} (use .ply or .obj)"))),
+            "stl" => stl::read_stl(path)?,
+            other => {
+                return Err(Error::format(path, format!("unknown mesh format {other:?} (use .ply, .obj or .stl)")))
+            }
         };
         mesh.validate().map_err(|e| e.in_file(path))?;
         Ok(mesh)
