@@ -178,3 +178,46 @@ fn a_folder_that_is_no_scene_is_reported() {
     let err = read_scene(&tmp.path().join("nope")).unwrap_err().to_string();
     assert!(err.contains("nope") && err.contains("no such scene folder"), "{err}");
 }
+
+#[test]
+fn the_direct_binary_ply_path_agrees_with_the_general_parser() {
+    use rmvp_dataset::mesh::ply::{read_ply, read_ply_generic, write_ply, PlyEncoding};
+    use rmvp_dataset::mesh::{ScalarKind, VertexProperty};
+    // The fixture (written by another program) both ways.
+    let path = spot().join("gt/mesh.ply");
+    let bytes = std::fs::read(&path).unwrap();
+    let generic = read_ply_generic(&mut std::io::Cursor::new(&bytes), &path).unwrap();
+    assert_eq!(read_ply(&path).unwrap(), generic);
+    // Every scalar type, polygons included, written by us and read by both.
+    let kinds = [
+        ScalarKind::I8,
+        ScalarKind::U8,
+        ScalarKind::I16,
+        ScalarKind::U16,
+        ScalarKind::I32,
+        ScalarKind::U32,
+        ScalarKind::F32,
+        ScalarKind::F64,
+    ];
+    let mut mesh = generic.clone();
+    let n = mesh.positions.len();
+    for (k, kind) in kinds.iter().enumerate() {
+        let values = (0..n)
+            .map(|i| {
+                ((i * 7 + k) % 100) as f64
+                    - if matches!(kind, ScalarKind::I8 | ScalarKind::I16 | ScalarKind::I32) { 50.0 } else { 0.0 }
+            })
+            .collect();
+        mesh.vertex_properties.push(VertexProperty { name: format!("p{k}"), kind: *kind, values });
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("all.ply");
+    write_ply(&out, &mesh, PlyEncoding::Binary).unwrap();
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(read_ply(&out).unwrap(), mesh);
+    assert_eq!(read_ply_generic(&mut std::io::Cursor::new(&bytes), &out).unwrap(), mesh);
+    // Cut inside the faces: named, and not a panic.
+    std::fs::write(&out, &bytes[..bytes.len() - 5]).unwrap();
+    let err = read_ply(&out).unwrap_err().to_string();
+    assert!(err.contains("all.ply") && err.contains("truncated"), "{err}");
+}

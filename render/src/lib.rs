@@ -26,6 +26,6 @@ pub use renderer::{geometry_maps, render_view, GeometryMaps, RenderedView, Setti
 /// The built-in object: Keenan Crane's "spot" (public domain), inside the unit sphere, +Y up.
 pub fn default_mesh() -> rmvp_dataset::Mesh {
     let bytes: &[u8] = include_bytes!("../assets/spot.ply");
-    rmvp_dataset::mesh::ply::read_ply_from(&mut &bytes[..], std::path::Path::new("embedded spot.ply"))
+    rmvp_dataset::mesh::ply::read_ply_bytes(bytes, std::path::Path::new("embedded spot.ply"))
         .expect("embedded mesh parses")
 }

@@ -3,6 +3,7 @@
 
 pub mod obj;
 pub mod ply;
+mod ply_binary;
 pub mod stl;
 
 use crate::{Error, Result};
@@ -158,7 +159,7 @@ fn extension(path: &Path) -> String {
 }
 
 /// Split a polygon into a triangle fan.
-fn push_fan(faces: &mut Vec<[u32; 3]>, polygon: &[u32]) {
+pub(crate) fn push_fan(faces: &mut Vec<[u32; 3]>, polygon: &[u32]) {
     for k in 1..polygon.len().saturating_sub(1) {
         faces.push([polygon[0], polygon[k], polygon[k + 1]]);
     }
