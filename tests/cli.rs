@@ -1,6 +1,7 @@
 //! End-to-end tests: the `rmvp` binary as users run it.
 
-use std::path::{Path, PathBuf};
+use rmvp_testkit::fixture;
+use std::path::Path;
 use std::process::{Command, Output};
 
 fn rmvp(args: &[&str]) -> Output {
@@ -17,15 +18,6 @@ fn fails(args: &[&str]) -> String {
     let out = rmvp(args);
     assert!(!out.status.success(), "rmvp {args:?} should have failed");
     String::from_utf8(out.stderr).unwrap()
-}
-
-fn fixture(name: &str) -> PathBuf {
-    let root = std::env::var_os("RMVP_FIXTURES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/fixtures"));
-    let dir = root.join(name);
-    assert!(dir.is_dir(), "fixture {} missing; set RMVP_FIXTURES", dir.display());
-    dir
 }
 
 fn s(p: &Path) -> &str {

@@ -7,15 +7,10 @@ use rmvp_dataset::Mesh;
 use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::shapes::icosphere;
 use rmvp_render::{geometry_maps, Object};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 fn spot_fixture() -> PathBuf {
-    let root = std::env::var_os("RMVP_FIXTURES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/fixtures"));
-    let dir = root.join("spot_nersp");
-    assert!(dir.is_dir(), "fixture {} missing; set RMVP_FIXTURES", dir.display());
-    dir
+    rmvp_testkit::fixture("spot_nersp")
 }
 
 fn scaled(mesh: &Mesh, s: f32) -> Mesh {

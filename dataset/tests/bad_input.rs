@@ -6,12 +6,7 @@ use rmvp_dataset::{Image, Mesh};
 use std::path::{Path, PathBuf};
 
 fn spot() -> PathBuf {
-    let root = std::env::var_os("RMVP_FIXTURES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/fixtures"));
-    let dir = root.join("spot_nersp");
-    assert!(dir.is_dir(), "fixture {} missing; set RMVP_FIXTURES", dir.display());
-    dir
+    rmvp_testkit::fixture("spot_nersp")
 }
 
 /// A writable copy of the spot fixture.

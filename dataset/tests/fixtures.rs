@@ -6,22 +6,8 @@ use rmvp_dataset::io::{exr, npy, png};
 use rmvp_dataset::layout::{canonical, nersp, read_scene, write_scene, Layout};
 use rmvp_dataset::polarization::{aop_to_u16, stokes_from_four};
 use rmvp_dataset::{Camera, Mesh, Scene};
+use rmvp_testkit::fixture_scenes as fixtures;
 use std::path::{Path, PathBuf};
-
-/// The fixture scenes: `$RMVP_FIXTURES` or `shared/fixtures` beside the checkout.
-fn fixtures() -> Vec<PathBuf> {
-    let root = std::env::var_os("RMVP_FIXTURES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/fixtures"));
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(&root)
-        .unwrap_or_else(|e| panic!("fixtures not found at {} ({e}); set RMVP_FIXTURES", root.display()))
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.join(nersp::CAMERAS).is_file())
-        .collect();
-    scenes.sort();
-    assert!(scenes.len() >= 2, "expected the spot and bunny fixtures in {}", root.display());
-    scenes
-}
 
 fn png_scale(dir: &Path) -> f64 {
     let json: serde_json::Value =

@@ -5,21 +5,7 @@ use rmvp_dataset::layout::read_scene;
 use rmvp_dataset::{Scene, Split};
 use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::{render_view, EnvMap, Object, RenderedView, Settings};
-use std::path::{Path, PathBuf};
-
-fn fixtures() -> Vec<PathBuf> {
-    let root = std::env::var_os("RMVP_FIXTURES")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/fixtures"));
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(&root)
-        .unwrap_or_else(|e| panic!("fixtures not found at {} ({e}); set RMVP_FIXTURES", root.display()))
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.join("cameras.npz").is_file())
-        .collect();
-    scenes.sort();
-    assert!(scenes.len() >= 2);
-    scenes
-}
+use rmvp_testkit::fixture_scenes as fixtures;
 
 fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
     v.sort_by(f64::total_cmp);
