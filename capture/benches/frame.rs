@@ -4,7 +4,6 @@
 
 use rmvp_capture::demosaic::{demosaic, demosaic_into, DemosaicMethod};
 use rmvp_capture::mosaic::{compose, split, split_into, SensorLayout};
-use rmvp_capture::pipeline::aop_dop_into;
 use rmvp_capture::stokes::{StokesEstimate, StokesEstimator};
 use rmvp_capture::{FrameProcessor, PixelFormat, ProcessedFrame, RawFrame};
 use rmvp_dataset::Image;
@@ -87,7 +86,7 @@ fn main() {
             }),
         ),
         ("Stokes (least squares)", time_ms(|| estimator.estimate_into(&rgb, 4095, &mut estimate))),
-        ("AoP + DoP", time_ms(|| aop_dop_into(&stokes, &mut aop, &mut dop))),
+        ("AoP + DoP", time_ms(|| stokes.aop_dop_into(&mut aop, &mut dop))),
     ];
     for (name, ms) in stages {
         println!("  {name:<32} {ms:8.2} ms");

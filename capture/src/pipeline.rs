@@ -110,50 +110,9 @@ impl FrameProcessor {
                         apply_color_matrix(r, m);
                     }
                 }
-                aop_dop_row([r0, r1, r2], c, a_row, d_row);
+                polarization::aop_dop_row([r0, r1, r2], c, a_row, d_row);
             });
         Ok(())
-    }
-}
-
-/// AoP and DoP of the channel-mean Stokes vector.
-pub fn aop_dop(stokes: &Stokes) -> (Image<f32>, Image<f32>) {
-    let (mut aop, mut dop) = Default::default();
-    aop_dop_into(stokes, &mut aop, &mut dop);
-    (aop, dop)
-}
-
-/// [`aop_dop`] into existing images, in one parallel pass.
-pub fn aop_dop_into(stokes: &Stokes, aop: &mut Image<f32>, dop: &mut Image<f32>) {
-    let (w, h, c) = (stokes.s0.width(), stokes.s0.height(), stokes.s0.channels());
-    aop.ensure_shape(w, h, 1);
-    dop.ensure_shape(w, h, 1);
-    aop.data_mut().par_chunks_mut(w).zip(dop.data_mut().par_chunks_mut(w)).enumerate().for_each(
-        |(y, (a_row, d_row))| {
-            let range = y * w * c..(y + 1) * w * c;
-            let rows = [&stokes.s0, &stokes.s1, &stokes.s2].map(|s| &s.data()[range.clone()]);
-            aop_dop_row(rows, c, a_row, d_row);
-        },
-    );
-}
-
-/// AoP and DoP of one row from its S0, S1, S2 rows of `c` interleaved channels.
-fn aop_dop_row(stokes_rows: [&[f32]; 3], c: usize, aop: &mut [f32], dop: &mut [f32]) {
-    let scale = 1.0 / c as f32;
-    let mean = |row: &[f32]| -> Vec<f32> {
-        match c {
-            1 => row.to_vec(),
-            3 => row.chunks_exact(3).map(|p| (p[0] + p[1] + p[2]) * scale).collect(),
-            _ => row.chunks_exact(c).map(|p| p.iter().sum::<f32>() * scale).collect(),
-        }
-    };
-    let [m0, m1, m2] = stokes_rows.map(mean);
-    // Contiguous, branch-free loops: both vectorise.
-    for ((a, &x), &y) in aop.iter_mut().zip(&m1).zip(&m2) {
-        *a = polarization::aop(x, y);
-    }
-    for (((d, &i), &x), &y) in dop.iter_mut().zip(&m0).zip(&m1).zip(&m2) {
-        *d = polarization::dop(i, x, y);
     }
 }
 
@@ -188,7 +147,7 @@ pub fn write_polarization(
         ("stokes.exr", &|p| write_stokes(p, stokes)),
         ("aop.exr", &|p| exr::write_exr(p, aop, &["AoP"])),
         ("dop.exr", &|p| exr::write_exr(p, dop, &["DoP"])),
-        ("aop.png", &|p| png::write_png_u8(p, &aop_picture(aop, dop))),
+        ("aop.png", &|p| png::write_png_u8(p, &visualize::aop_picture(aop, dop, None))),
         ("dop.png", &|p| png::write_png_u8(p, &visualize::gray_ramp(dop, 0.0, 1.0))),
         ("s0.png", &|p| png::write_png_u8(p, &visualize::preview(&stokes.s0))),
     ];
@@ -199,10 +158,4 @@ pub fn write_polarization(
         written.push(path);
     }
     Ok(written)
-}
-
-/// The AoP hue wheel, brightness by DoP (full at the image's 99th DoP percentile).
-pub fn aop_picture(aop: &Image<f32>, dop: &Image<f32>) -> Image<u8> {
-    let full = visualize::quantile(dop.data(), 0.99).clamp(1e-3, 1.0);
-    visualize::aop_picture(aop, dop, full, None)
 }

@@ -84,6 +84,27 @@ pub fn dop(s0: f32, s1: f32, s2: f32) -> f32 {
     }
 }
 
+/// AoP and DoP of one image row from its S0, S1, S2 rows of `channels` interleaved channels,
+/// each pixel's channel-mean Stokes vector (the NeRSP definition for RGB). Contiguous,
+/// branch-free loops: both vectorise.
+pub fn aop_dop_row(stokes_rows: [&[f32]; 3], channels: usize, aop: &mut [f32], dop: &mut [f32]) {
+    let scale = 1.0 / channels as f32;
+    let mean = |row: &[f32]| -> Vec<f32> {
+        match channels {
+            1 => row.to_vec(),
+            3 => row.chunks_exact(3).map(|p| (p[0] + p[1] + p[2]) * scale).collect(),
+            _ => row.chunks_exact(channels).map(|p| p.iter().sum::<f32>() * scale).collect(),
+        }
+    };
+    let [m0, m1, m2] = stokes_rows.map(mean);
+    for ((a, &x), &y) in aop.iter_mut().zip(&m1).zip(&m2) {
+        *a = self::aop(x, y);
+    }
+    for (((d, &i), &x), &y) in dop.iter_mut().zip(&m0).zip(&m1).zip(&m2) {
+        *d = self::dop(i, x, y);
+    }
+}
+
 /// Full scale of the 16-bit AoP encoding of the NeRSP layout: `count = round(AoP / pi * 65535)`.
 pub const AOP_U16_FULL_SCALE: f64 = 65535.0;
 

@@ -3,6 +3,7 @@
 use crate::polarization;
 use crate::{Camera, Error, Image, Mesh, Result};
 use nalgebra::Matrix4;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// What a view is for.
@@ -44,18 +45,24 @@ impl Stokes {
         Ok(())
     }
 
-    /// AoP of the channel-mean Stokes vector, in `[0, pi)` (the NeRSP definition for RGB data).
-    pub fn aop(&self) -> Image<f32> {
-        let (s1, s2) = (self.s1.channel_mean(), self.s2.channel_mean());
-        let data = s1.data().iter().zip(s2.data()).map(|(&a, &b)| polarization::aop(a, b)).collect();
-        Image::from_vec(s1.width(), s1.height(), 1, data).expect("same size")
+    /// AoP (radians, `[0, pi)`) and DoP of each pixel's channel-mean Stokes vector (the NeRSP
+    /// definition for RGB data), one channel each.
+    pub fn aop_dop(&self) -> (Image<f32>, Image<f32>) {
+        let (mut aop, mut dop) = (Image::default(), Image::default());
+        self.aop_dop_into(&mut aop, &mut dop);
+        (aop, dop)
     }
 
-    /// DoP of the channel-mean Stokes vector.
-    pub fn dop(&self) -> Image<f32> {
-        let (s0, s1, s2) = (self.s0.channel_mean(), self.s1.channel_mean(), self.s2.channel_mean());
-        let data = (0..s0.data().len()).map(|i| polarization::dop(s0.data()[i], s1.data()[i], s2.data()[i])).collect();
-        Image::from_vec(s0.width(), s0.height(), 1, data).expect("same size")
+    /// [`Stokes::aop_dop`] into existing images (reusing their buffers), one parallel pass.
+    pub fn aop_dop_into(&self, aop: &mut Image<f32>, dop: &mut Image<f32>) {
+        let (w, h, c) = (self.s0.width(), self.s0.height(), self.s0.channels());
+        aop.ensure_shape(w, h, 1);
+        dop.ensure_shape(w, h, 1);
+        aop.data_mut().par_chunks_mut(w).zip(dop.data_mut().par_chunks_mut(w)).enumerate().for_each(|(y, (a, d))| {
+            let range = y * w * c..(y + 1) * w * c;
+            let rows = [&self.s0, &self.s1, &self.s2].map(|s| &s.data()[range.clone()]);
+            polarization::aop_dop_row(rows, c, a, d);
+        });
     }
 }
 

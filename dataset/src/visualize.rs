@@ -61,8 +61,10 @@ pub fn hsv_to_rgb(hue: f32, saturation: f32, value: f32) -> [u8; 3] {
 }
 
 /// AoP as a hue wheel (0 red, pi/3 green, 2pi/3 blue, back to red at pi), its brightness the
-/// DoP relative to `dop_full` (brightest at or above it); pixels outside `mask` are black.
-pub fn aop_picture(aop: &Image<f32>, dop: &Image<f32>, dop_full: f32, mask: Option<&Image<u8>>) -> Image<u8> {
+/// DoP relative to the image's 99th DoP percentile (brightest at or above it); pixels outside
+/// `mask` are black.
+pub fn aop_picture(aop: &Image<f32>, dop: &Image<f32>, mask: Option<&Image<u8>>) -> Image<u8> {
+    let dop_full = quantile(dop.data(), 0.99).clamp(1e-3, 1.0);
     let mut out = Image::new(aop.width(), aop.height(), 3);
     for (i, px) in out.data_mut().chunks_exact_mut(3).enumerate() {
         if mask.is_some_and(|m| m.data()[i * m.channels()] == 0) {

@@ -217,8 +217,9 @@ impl RenderedView {
     pub fn into_view(self, name: impl Into<String>, split: Split, camera: Camera, polarizer_scale: f64) -> View {
         let mut view = View::new(name, split, camera);
         view.polarized = Some(self.polarizer_images(polarizer_scale));
-        view.aop = Some(self.stokes.aop());
-        view.dop = Some(self.stokes.dop());
+        let (aop, dop) = self.stokes.aop_dop();
+        view.aop = Some(aop);
+        view.dop = Some(dop);
         view.preview = Some(visualize::preview(&self.stokes.s0));
         view.mask = Some(self.mask);
         view.depth = Some(self.depth);

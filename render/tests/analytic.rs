@@ -85,8 +85,7 @@ fn masks_depths_and_normals_match_the_sphere() {
 
 /// Per object pixel: (normal azimuth in the pixel's Stokes frame, view zenith angle, AoP, DoP).
 fn polarization_samples(cam: &Camera, view: &RenderedView) -> Vec<(f64, f64, f64, f64)> {
-    let aop = view.stokes.aop();
-    let dop = view.stokes.dop();
+    let (aop, dop) = view.stokes.aop_dop();
     let mut out = Vec::new();
     for j in 0..SIZE {
         for i in 0..SIZE {

@@ -47,8 +47,8 @@ fn agrees_with_mitsuba_on_the_fixtures() {
             }
             if view.split == Split::Train {
                 let s = view.stokes.as_ref().unwrap();
-                let (aop, dop) = (s.aop(), s.dop());
-                let our_aop = ours.stokes.aop();
+                let (aop, dop) = s.aop_dop();
+                let (our_aop, _) = ours.stokes.aop_dop();
                 for k in 0..theirs.data().len() {
                     if ours.mask.data()[k] > 0 && theirs.data()[k] > 0 && dop.data()[k] > 0.05 {
                         let d = (our_aop.data()[k] - aop.data()[k]).rem_euclid(std::f32::consts::PI) as f64;

@@ -106,7 +106,7 @@ pub fn run(args: Args) -> Result<()> {
     let (mut aop_errors, mut s0_errors, mut tiles) = (Vec::new(), Vec::new(), Vec::new());
     for (t, c) in truth.views.iter().zip(&reread.views) {
         let (ts, cs) = (t.stokes.as_ref().context("truth")?, c.stokes.as_ref().context("captured")?);
-        let (taop, tdop, caop) = (ts.aop(), ts.dop(), cs.aop());
+        let ((taop, tdop), (caop, cdop)) = (ts.aop_dop(), cs.aop_dop());
         let mask = t.mask.as_ref().context("mask")?;
         let mut error_map = Image::new(mask.width(), mask.height(), 1);
         for k in 0..mask.data().len() {
@@ -123,16 +123,10 @@ pub fn run(args: Args) -> Result<()> {
                 s0_errors.push((a - b).abs() / b);
             }
         }
-        let dop_full = quantile(tdop.data(), 0.99).clamp(1e-3, 1.0);
         let factor = mask.width().div_ceil(256);
         tiles.extend(
-            [
-                preview(&ts.s0),
-                preview(&cs.s0),
-                aop_picture(&caop, &cs.dop(), dop_full, Some(mask)),
-                gray_ramp(&error_map, 0.0, 10.0),
-            ]
-            .map(|tile| downsample(&tile, factor)),
+            [preview(&ts.s0), preview(&cs.s0), aop_picture(&caop, &cdop, Some(mask)), gray_ramp(&error_map, 0.0, 10.0)]
+                .map(|tile| downsample(&tile, factor)),
         );
     }
     let sheet_path = out.join("contact_sheet.png");

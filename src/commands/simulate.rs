@@ -131,13 +131,8 @@ pub fn simulate(args: &Args) -> Result<Scene> {
     let mut scene = Scene::new();
     for (i, (render, camera)) in renders.into_iter().zip(&cameras).enumerate() {
         let normal_picture = render.normals.map(|v| ((v * 0.5 + 0.5) * 255.0).round() as u8);
-        let (aop, dop) = (render.stokes.aop(), render.stokes.dop());
-        let dop_full = quantile(dop.data(), 0.99).clamp(1e-3, 1.0);
-        tiles.extend([
-            preview(&render.stokes.s0),
-            aop_picture(&aop, &dop, dop_full, Some(&render.mask)),
-            normal_picture,
-        ]);
+        let (aop, dop) = render.stokes.aop_dop();
+        tiles.extend([preview(&render.stokes.s0), aop_picture(&aop, &dop, Some(&render.mask)), normal_picture]);
         let to_camera = camera.r.cast::<f32>();
         let camera_normals: Vec<f32> = render
             .normals

@@ -1,7 +1,7 @@
 //! `rmvp stokes I0 I45 I90 I135 -o DIR`.
 
 use anyhow::{bail, Result};
-use rmvp_capture::pipeline::{aop_dop, write_polarization};
+use rmvp_capture::pipeline::write_polarization;
 use rmvp_dataset::io::{exr, png};
 use rmvp_dataset::polarization::stokes_from_four;
 use rmvp_dataset::{Image, Stokes};
@@ -70,7 +70,7 @@ pub fn run(args: Args) -> Result<()> {
     }
     let [s0, s1, s2] = s;
     let stokes = Stokes { s0, s1, s2 };
-    let (aop, dop) = aop_dop(&stokes);
+    let (aop, dop) = stokes.aop_dop();
     for path in write_polarization(&args.output, &args.stem, &stokes, &aop, &dop)? {
         println!("{}", path.display());
     }

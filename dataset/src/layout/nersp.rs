@@ -301,7 +301,7 @@ fn write_train_view(dir: &Path, i: usize, view: &View) -> Result<()> {
         npy::write_npy(&train_file(dir, folder, i, "npy"), &array_from_image(image))?;
     }
     png::write_png_u8(&train_file(dir, "mask", i, "png"), mask)?;
-    let aop = view.aop.clone().unwrap_or_else(|| stokes.aop());
+    let aop = view.aop.clone().unwrap_or_else(|| stokes.aop_dop().0);
     let rgba: Vec<u16> = aop
         .data()
         .iter()
