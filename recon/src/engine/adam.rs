@@ -1,0 +1,73 @@
+//! Adam with per-group learning rates, linear warm-up and cosine decay (NeuS's schedule).
+
+use super::params::{Group, Layout};
+use serde::{Deserialize, Serialize};
+
+/// Learning rates and schedule.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct AdamConfig {
+    /// Peak learning rate of network weights.
+    pub lr_network: f32,
+    /// Peak learning rate of hash-grid tables.
+    pub lr_grid: f32,
+    /// Peak learning rate of the NeuS variance.
+    pub lr_variance: f32,
+    /// Iterations of linear warm-up.
+    pub warmup: u32,
+    /// Final learning rate as a fraction of the peak (cosine decay).
+    pub final_fraction: f32,
+}
+
+/// Adam state over the flat parameter vector.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Adam {
+    /// First moments.
+    pub m: Vec<f32>,
+    /// Second moments.
+    pub v: Vec<f32>,
+    /// Steps taken.
+    pub steps: u32,
+}
+
+const BETA1: f32 = 0.9;
+const BETA2: f32 = 0.99;
+
+impl Adam {
+    /// Zero moments for `len` parameters.
+    pub fn new(len: usize) -> Self {
+        Self { m: vec![0.0; len], v: vec![0.0; len], steps: 0 }
+    }
+
+    /// The schedule's factor at `iteration` of `total`.
+    pub fn schedule(config: &AdamConfig, iteration: u32, total: u32) -> f32 {
+        if iteration < config.warmup {
+            return (iteration + 1) as f32 / config.warmup as f32;
+        }
+        let progress = (iteration - config.warmup) as f32 / (total.saturating_sub(config.warmup)).max(1) as f32;
+        let cosine = 0.5 * (1.0 + (std::f32::consts::PI * progress.min(1.0)).cos());
+        cosine * (1.0 - config.final_fraction) + config.final_fraction
+    }
+
+    /// One update of `params` by `grad` at `iteration` of `total`.
+    pub fn step(&mut self, layout: &Layout, config: &AdamConfig, params: &mut [f32], grad: &[f32], iteration: u32, total: u32) {
+        self.steps += 1;
+        let factor = Self::schedule(config, iteration, total);
+        let c1 = 1.0 - BETA1.powi(self.steps as i32);
+        let c2 = 1.0 - BETA2.powi(self.steps as i32);
+        for (range, group) in layout.ranges() {
+            let (lr, eps) = match group {
+                Group::Network => (config.lr_network, 1e-8),
+                Group::Grid => (config.lr_grid, 1e-15),
+                Group::Variance => (config.lr_variance, 1e-8),
+            };
+            let lr = lr * factor;
+            let r = range.clone();
+            for (((p, &g), m), v) in params[r.clone()].iter_mut().zip(&grad[r.clone()]).zip(&mut self.m[r.clone()]).zip(&mut self.v[r])
+            {
+                *m = BETA1 * *m + (1.0 - BETA1) * g;
+                *v = BETA2 * *v + (1.0 - BETA2) * g * g;
+                *p -= lr * (*m / c1) / ((*v / c2).sqrt() + eps);
+            }
+        }
+    }
+}

@@ -1,0 +1,314 @@
+//! Multilayer perceptrons on row-major batches (`n x width`), forward and backward by SGEMM
+//! (`matrixmultiply`), with an optional skip connection and NeuS's geometric initialisation.
+
+use super::params::{Group, Layout};
+use rmvp_render::rng::Rng;
+
+/// Activation of the hidden layers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Activation {
+    /// `max(x, 0)`.
+    Relu,
+    /// `ln(1 + exp(beta x)) / beta`.
+    Softplus(f32),
+}
+
+impl Activation {
+    fn apply(self, x: f32) -> f32 {
+        match self {
+            Activation::Relu => x.max(0.0),
+            Activation::Softplus(beta) => {
+                let z = beta * x;
+                if z > 20.0 {
+                    x
+                } else {
+                    z.exp().ln_1p() / beta
+                }
+            }
+        }
+    }
+
+    fn derivative(self, x: f32) -> f32 {
+        match self {
+            Activation::Relu => (x > 0.0) as u8 as f32,
+            Activation::Softplus(beta) => 1.0 / (1.0 + (-beta * x).exp()),
+        }
+    }
+}
+
+#[derive(Clone, Debug)]
+struct Dense {
+    inputs: usize,
+    outputs: usize,
+    weight: usize,
+    bias: usize,
+}
+
+/// A fully connected network: `inputs -> hidden^depth -> outputs`, linear output layer.
+#[derive(Clone, Debug)]
+pub struct Mlp {
+    layers: Vec<Dense>,
+    activation: Activation,
+    /// Layer index whose input is `[h, x] / sqrt(2)` (NeuS's skip connection).
+    skip: Option<usize>,
+    inputs: usize,
+}
+
+/// What the forward pass keeps for the backward pass.
+#[derive(Default)]
+pub struct MlpCache {
+    rows: usize,
+    /// Input of every layer (after the skip concatenation).
+    layer_inputs: Vec<Vec<f32>>,
+    /// Pre-activations of the hidden layers.
+    pre: Vec<Vec<f32>>,
+}
+
+/// How to initialise an [`Mlp`].
+#[derive(Clone, Copy, Debug)]
+pub enum Init {
+    /// Kaiming-uniform-like weights, zero biases.
+    Default,
+    /// NeuS/IDR geometric initialisation: the first output approximates the SDF of a sphere of
+    /// this radius; inputs past the first 3 (encodings) start with zero weights.
+    Sphere(f32),
+}
+
+impl Mlp {
+    /// Reserve a network in `layout`: `hidden` units in each of `depth` hidden layers.
+    pub fn new(
+        layout: &mut Layout,
+        inputs: usize,
+        hidden: usize,
+        depth: usize,
+        outputs: usize,
+        activation: Activation,
+        skip: Option<usize>,
+    ) -> Self {
+        let mut layers = Vec::new();
+        let mut width = inputs;
+        for l in 0..=depth {
+            let out = if l == depth {
+                outputs
+            } else if skip == Some(l + 1) {
+                hidden - inputs
+            } else {
+                hidden
+            };
+            let weight = layout.reserve(out * width, Group::Network);
+            let bias = layout.reserve(out, Group::Network);
+            layers.push(Dense { inputs: width, outputs: out, weight, bias });
+            width = if skip == Some(l + 1) { out + inputs } else { out };
+        }
+        Self { layers, activation, skip, inputs }
+    }
+
+    /// Number of inputs.
+    pub fn inputs(&self) -> usize {
+        self.inputs
+    }
+
+    /// Number of outputs.
+    pub fn outputs(&self) -> usize {
+        self.layers.last().expect("at least one layer").outputs
+    }
+
+    /// Write initial weights into `params`.
+    pub fn init(&self, params: &mut [f32], init: Init, rng: &mut Rng) {
+        let depth = self.layers.len();
+        for (l, layer) in self.layers.iter().enumerate() {
+            let (n_in, n_out) = (layer.inputs, layer.outputs);
+            // The bias is reserved right after the weights.
+            let (w, b) = params[layer.weight..layer.bias + n_out].split_at_mut(n_in * n_out);
+            match init {
+                Init::Default => {
+                    let bound = (6.0 / n_in as f32).sqrt();
+                    w.iter_mut().for_each(|v| *v = (2.0 * rng.next_f32() - 1.0) * bound * 0.5);
+                    b.fill(0.0);
+                }
+                Init::Sphere(radius) => {
+                    if l + 1 == depth {
+                        let mean = (std::f32::consts::PI / n_in as f32).sqrt();
+                        w.iter_mut().for_each(|v| *v = mean + 1e-4 * rng.normal());
+                        b.fill(-radius);
+                    } else {
+                        let std = 2f32.sqrt() / (n_out as f32).sqrt();
+                        w.iter_mut().for_each(|v| *v = std * rng.normal());
+                        b.fill(0.0);
+                        if l == 0 {
+                            // Encodings start silent: the network begins as a function of x alone.
+                            for row in w.chunks_mut(n_in) {
+                                row[3..].fill(0.0);
+                            }
+                        } else if self.skip == Some(l) {
+                            // The re-injected encoding (all but its first 3 inputs) starts silent.
+                            let first = n_in - self.inputs + 3;
+                            for row in w.chunks_mut(n_in) {
+                                row[first..].fill(0.0);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// `outputs (rows x outputs) = f(inputs (rows x inputs))`, keeping what backward needs.
+    pub fn forward(&self, params: &[f32], input: &[f32], rows: usize, cache: &mut MlpCache) -> Vec<f32> {
+        self.run(params, input, rows, Some(cache))
+    }
+
+    /// Forward without keeping anything (inference).
+    pub fn infer(&self, params: &[f32], input: &[f32], rows: usize) -> Vec<f32> {
+        self.run(params, input, rows, None)
+    }
+
+    fn run(&self, params: &[f32], input: &[f32], rows: usize, mut cache: Option<&mut MlpCache>) -> Vec<f32> {
+        debug_assert_eq!(input.len(), rows * self.inputs);
+        if let Some(c) = cache.as_deref_mut() {
+            c.rows = rows;
+            c.layer_inputs.clear();
+            c.pre.clear();
+        }
+        let mut h: Vec<f32> = input.to_vec();
+        for (l, layer) in self.layers.iter().enumerate() {
+            if self.skip == Some(l) {
+                h = concat_skip(&h, input, rows, layer.inputs - self.inputs, self.inputs);
+            }
+            let mut out = vec![0f32; rows * layer.outputs];
+            for row in out.chunks_mut(layer.outputs) {
+                row.copy_from_slice(&params[layer.bias..layer.bias + layer.outputs]);
+            }
+            gemm(
+                rows,
+                layer.inputs,
+                layer.outputs,
+                (&h, layer.inputs as isize, 1),
+                (&params[layer.weight..], 1, layer.inputs as isize),
+                1.0,
+                &mut out,
+            );
+            let last = l + 1 == self.layers.len();
+            let next = if last {
+                out
+            } else {
+                let act: Vec<f32> = out.iter().map(|&x| self.activation.apply(x)).collect();
+                if let Some(c) = cache.as_deref_mut() {
+                    c.pre.push(out);
+                }
+                act
+            };
+            if let Some(c) = cache.as_deref_mut() {
+                c.layer_inputs.push(std::mem::take(&mut h));
+            }
+            h = next;
+        }
+        h
+    }
+
+    /// Given `d_output` (rows x outputs), add the parameter gradients into `grad` and return the
+    /// input gradient (rows x inputs).
+    pub fn backward(&self, params: &[f32], cache: &MlpCache, d_output: &[f32], grad: &mut [f32]) -> Vec<f32> {
+        let rows = cache.rows;
+        let mut d = d_output.to_vec();
+        let mut d_input_skip: Option<Vec<f32>> = None;
+        for l in (0..self.layers.len()).rev() {
+            let layer = &self.layers[l];
+            if l + 1 < self.layers.len() {
+                let pre = &cache.pre[l];
+                d.iter_mut().zip(pre).for_each(|(g, &x)| *g *= self.activation.derivative(x));
+            }
+            let x = &cache.layer_inputs[l];
+            // dW += d^T x, db += column sums of d.
+            gemm(
+                layer.outputs,
+                rows,
+                layer.inputs,
+                (&d, 1, layer.outputs as isize),
+                (x, layer.inputs as isize, 1),
+                1.0,
+                &mut grad[layer.weight..layer.weight + layer.outputs * layer.inputs],
+            );
+            let gb = &mut grad[layer.bias..layer.bias + layer.outputs];
+            for row in d.chunks(layer.outputs) {
+                gb.iter_mut().zip(row).for_each(|(g, v)| *g += v);
+            }
+            // dx = d W.
+            let mut dx = vec![0f32; rows * layer.inputs];
+            gemm(
+                rows,
+                layer.outputs,
+                layer.inputs,
+                (&d, layer.outputs as isize, 1),
+                (&params[layer.weight..], layer.inputs as isize, 1),
+                0.0,
+                &mut dx,
+            );
+            if self.skip == Some(l) {
+                let hidden = layer.inputs - self.inputs;
+                let (dh, dskip) = split_skip(&dx, rows, hidden, self.inputs);
+                d_input_skip = Some(dskip);
+                d = dh;
+            } else {
+                d = dx;
+            }
+        }
+        if let Some(extra) = d_input_skip {
+            d.iter_mut().zip(extra).for_each(|(a, b)| *a += b);
+        }
+        d
+    }
+}
+
+const SKIP_SCALE: f32 = std::f32::consts::FRAC_1_SQRT_2;
+
+fn concat_skip(h: &[f32], input: &[f32], rows: usize, hidden: usize, inputs: usize) -> Vec<f32> {
+    let mut out = Vec::with_capacity(rows * (hidden + inputs));
+    for r in 0..rows {
+        out.extend(h[r * hidden..(r + 1) * hidden].iter().map(|v| v * SKIP_SCALE));
+        out.extend(input[r * inputs..(r + 1) * inputs].iter().map(|v| v * SKIP_SCALE));
+    }
+    out
+}
+
+fn split_skip(dx: &[f32], rows: usize, hidden: usize, inputs: usize) -> (Vec<f32>, Vec<f32>) {
+    let (mut dh, mut di) = (Vec::with_capacity(rows * hidden), Vec::with_capacity(rows * inputs));
+    for row in dx.chunks(hidden + inputs) {
+        dh.extend(row[..hidden].iter().map(|v| v * SKIP_SCALE));
+        di.extend(row[hidden..].iter().map(|v| v * SKIP_SCALE));
+    }
+    (dh, di)
+}
+
+/// `c (m x n, row-major) = beta c + a (m x k) b (k x n)`; `a` and `b` given with row and column
+/// strides.
+fn gemm(m: usize, k: usize, n: usize, a: (&[f32], isize, isize), b: (&[f32], isize, isize), beta: f32, c: &mut [f32]) {
+    assert!(c.len() >= m * n);
+    if m == 0 || n == 0 {
+        return;
+    }
+    let max_index = |rows: usize, cols: usize, rs: isize, cs: isize| (rows - 1) as isize * rs + (cols - 1) as isize * cs;
+    if k > 0 {
+        assert!(max_index(m, k, a.1, a.2) < a.0.len() as isize);
+        assert!(max_index(k, n, b.1, b.2) < b.0.len() as isize);
+    }
+    // SAFETY: the asserts above keep every index matrixmultiply computes inside the slices.
+    unsafe {
+        matrixmultiply::sgemm(
+            m,
+            k,
+            n,
+            1.0,
+            a.0.as_ptr(),
+            a.1,
+            a.2,
+            b.0.as_ptr(),
+            b.1,
+            b.2,
+            beta,
+            c.as_mut_ptr(),
+            n as isize,
+            1,
+        );
+    }
+}

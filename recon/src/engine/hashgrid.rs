@@ -1,0 +1,131 @@
+//! Multiresolution hash encoding (Müller et al. 2022) of points in `[-1, 1]^3`, trilinear, with
+//! per-level weights for coarse-to-fine annealing (Neuralangelo).
+
+use super::params::{Group, Layout};
+use rmvp_render::rng::Rng;
+
+/// Features per level.
+pub const FEATURES: usize = 2;
+
+/// A hash-grid encoding's shape and where its tables live.
+#[derive(Clone, Debug)]
+pub struct HashGrid {
+    levels: usize,
+    table: usize,
+    resolutions: Vec<u32>,
+    offset: usize,
+}
+
+struct Corners {
+    index: [usize; 8],
+    weight: [f32; 8],
+}
+
+impl HashGrid {
+    /// `levels` levels from `base` to `finest` cells per axis, `2^log2_table` entries per level.
+    pub fn new(layout: &mut Layout, levels: usize, log2_table: u32, base: u32, finest: u32) -> Self {
+        let growth = if levels > 1 { (finest as f64 / base as f64).powf(1.0 / (levels - 1) as f64) } else { 1.0 };
+        let resolutions = (0..levels).map(|l| (base as f64 * growth.powi(l as i32)).round() as u32).collect();
+        let table = 1usize << log2_table;
+        let offset = layout.reserve(levels * table * FEATURES, Group::Grid);
+        Self { levels, table, resolutions, offset }
+    }
+
+    /// Number of output features (`levels * 2`).
+    pub fn outputs(&self) -> usize {
+        self.levels * FEATURES
+    }
+
+    /// Number of levels.
+    pub fn levels(&self) -> usize {
+        self.levels
+    }
+
+    /// Cells per axis of each level.
+    pub fn resolutions(&self) -> &[u32] {
+        &self.resolutions
+    }
+
+    /// Uniform `[-1e-4, 1e-4]` features, as instant-NGP.
+    pub fn init(&self, params: &mut [f32], rng: &mut Rng) {
+        let n = self.levels * self.table * FEATURES;
+        params[self.offset..self.offset + n].iter_mut().for_each(|v| *v = (rng.next_f32() * 2.0 - 1.0) * 1e-4);
+    }
+
+    fn corners(&self, level: usize, p: [f32; 3]) -> Corners {
+        let res = self.resolutions[level];
+        let side = res as usize + 1;
+        let dense = side * side * side <= self.table;
+        let mut cell = [0u32; 3];
+        let mut frac = [0f32; 3];
+        for a in 0..3 {
+            let x = ((p[a] + 1.0) * 0.5).clamp(0.0, 1.0) * res as f32;
+            let c = (x.floor() as u32).min(res - 1);
+            cell[a] = c;
+            frac[a] = x - c as f32;
+        }
+        let base = self.offset + level * self.table * FEATURES;
+        let mut out = Corners { index: [0; 8], weight: [0.0; 8] };
+        for k in 0..8 {
+            let bit = [k & 1, (k >> 1) & 1, (k >> 2) & 1];
+            let mut w = 1.0;
+            let mut c = [0usize; 3];
+            for a in 0..3 {
+                c[a] = (cell[a] as usize) + bit[a];
+                w *= if bit[a] == 1 { frac[a] } else { 1.0 - frac[a] };
+            }
+            let slot = if dense {
+                c[0] + side * (c[1] + side * c[2])
+            } else {
+                let h = (c[0] as u32) ^ (c[1] as u32).wrapping_mul(2_654_435_761) ^ (c[2] as u32).wrapping_mul(805_459_861);
+                h as usize & (self.table - 1)
+            };
+            out.index[k] = base + slot * FEATURES;
+            out.weight[k] = w;
+        }
+        out
+    }
+
+    /// Encode `points` (n x 3) into `out` (n x outputs); level `l` is scaled by `level_weight[l]`.
+    pub fn encode(&self, params: &[f32], points: &[f32], level_weight: &[f32], out: &mut [f32]) {
+        let width = self.outputs();
+        for (p, o) in points.chunks_exact(3).zip(out.chunks_exact_mut(width)) {
+            for level in 0..self.levels {
+                let lw = level_weight[level];
+                if lw == 0.0 {
+                    o[level * FEATURES..(level + 1) * FEATURES].fill(0.0);
+                    continue;
+                }
+                let corners = self.corners(level, [p[0], p[1], p[2]]);
+                let mut f = [0f32; FEATURES];
+                for k in 0..8 {
+                    for (j, fj) in f.iter_mut().enumerate() {
+                        *fj += corners.weight[k] * params[corners.index[k] + j];
+                    }
+                }
+                for j in 0..FEATURES {
+                    o[level * FEATURES + j] = f[j] * lw;
+                }
+            }
+        }
+    }
+
+    /// Scatter `d_out` (n x outputs) into the table gradients.
+    pub fn backward(&self, points: &[f32], level_weight: &[f32], d_out: &[f32], grad: &mut [f32]) {
+        let width = self.outputs();
+        for (p, d) in points.chunks_exact(3).zip(d_out.chunks_exact(width)) {
+            for level in 0..self.levels {
+                let lw = level_weight[level];
+                if lw == 0.0 {
+                    continue;
+                }
+                let corners = self.corners(level, [p[0], p[1], p[2]]);
+                for k in 0..8 {
+                    for j in 0..FEATURES {
+                        grad[corners.index[k] + j] += corners.weight[k] * lw * d[level * FEATURES + j];
+                    }
+                }
+            }
+        }
+    }
+}

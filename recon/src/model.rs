@@ -1,0 +1,430 @@
+//! NeRSP's networks: the SDF field (`paper`: 8x256 MLP with positional encoding; `fast`: hash
+//! grid and a small MLP) and the radiance networks (diffuse, roughness, specular with the
+//! integrated directional encoding), combined into per-sample Stokes vectors by [`crate::pbrdf`].
+
+use crate::engine::encoding::{ide, positional_encoding, IDE_WIDTH};
+use crate::engine::{Activation, HashGrid, Init, Layout, Mlp, MlpCache};
+use crate::pbrdf::{degrees, dot, double_azimuth};
+use rmvp_render::rng::Rng;
+use serde::{Deserialize, Serialize};
+
+/// The two model presets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// Hash grid + small MLPs: minutes on a CPU.
+    #[default]
+    Fast,
+    /// The official NeRSP/NeuS networks (8x256 SDF MLP): hours.
+    Paper,
+}
+
+/// Network shapes.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ModelConfig {
+    /// Which preset these shapes come from.
+    pub preset: Preset,
+    /// Feature vector passed from the SDF field to the radiance networks.
+    pub features: usize,
+    /// SDF MLP width and hidden depth.
+    pub sdf_hidden: usize,
+    /// Hidden layers of the SDF MLP.
+    pub sdf_depth: usize,
+    /// Layer receiving the skip connection.
+    pub sdf_skip: Option<usize>,
+    /// Positional-encoding frequencies (paper preset).
+    pub frequencies: usize,
+    /// Hash grid `(levels, log2 table size, coarsest, finest resolution)` (fast preset).
+    pub grid: Option<(usize, u32, u32, u32)>,
+    /// Radiance networks' width and hidden depth.
+    pub color_hidden: usize,
+    /// Hidden layers of the radiance networks.
+    pub color_depth: usize,
+}
+
+impl ModelConfig {
+    /// The shapes of `preset`.
+    pub fn preset(preset: Preset) -> Self {
+        match preset {
+            Preset::Paper => Self {
+                preset,
+                features: 256,
+                sdf_hidden: 256,
+                sdf_depth: 8,
+                sdf_skip: Some(4),
+                frequencies: 6,
+                grid: None,
+                color_hidden: 256,
+                color_depth: 4,
+            },
+            Preset::Fast => Self {
+                preset,
+                features: 15,
+                sdf_hidden: 64,
+                sdf_depth: 2,
+                sdf_skip: None,
+                frequencies: 0,
+                grid: Some((12, 17, 16, 512)),
+                color_hidden: 64,
+                color_depth: 2,
+            },
+        }
+    }
+}
+
+/// The SDF field: point -> (SDF, features).
+#[derive(Clone, Debug)]
+pub struct Field {
+    grid: Option<HashGrid>,
+    frequencies: usize,
+    mlp: Mlp,
+    features: usize,
+}
+
+/// What [`Field::forward`] keeps for [`Field::backward`].
+#[derive(Default)]
+pub struct FieldCache {
+    points: Vec<f32>,
+    mlp: MlpCache,
+}
+
+impl Field {
+    fn new(layout: &mut Layout, config: &ModelConfig) -> Self {
+        let grid = config.grid.map(|(levels, log2, base, finest)| HashGrid::new(layout, levels, log2, base, finest));
+        let encoded = match &grid {
+            Some(g) => g.outputs(),
+            None => 6 * config.frequencies,
+        };
+        let mlp = Mlp::new(
+            layout,
+            3 + encoded,
+            config.sdf_hidden,
+            config.sdf_depth,
+            1 + config.features,
+            Activation::Softplus(100.0),
+            config.sdf_skip,
+        );
+        Self { grid, frequencies: config.frequencies, mlp, features: config.features }
+    }
+
+    /// Values per point: the SDF then the features.
+    pub fn outputs(&self) -> usize {
+        1 + self.features
+    }
+
+    /// Hash-grid levels (0 for the MLP preset).
+    pub fn levels(&self) -> usize {
+        self.grid.as_ref().map_or(0, |g| g.levels())
+    }
+
+    /// The hash grid's finest active resolution under `level_weight` (None without a grid).
+    pub fn finest_active(&self, level_weight: &[f32]) -> Option<u32> {
+        let g = self.grid.as_ref()?;
+        g.resolutions().iter().zip(level_weight).filter(|(_, &w)| w > 0.0).map(|(&r, _)| r).last()
+    }
+
+    fn encode(&self, params: &[f32], points: &[f32], level_weight: &[f32]) -> Vec<f32> {
+        let n = points.len() / 3;
+        let width = self.mlp.inputs();
+        let mut out = vec![0f32; n * width];
+        match &self.grid {
+            Some(g) => {
+                let mut enc = vec![0f32; n * g.outputs()];
+                g.encode(params, points, level_weight, &mut enc);
+                for ((o, p), e) in out.chunks_exact_mut(width).zip(points.chunks_exact(3)).zip(enc.chunks_exact(g.outputs())) {
+                    o[..3].copy_from_slice(p);
+                    o[3..].copy_from_slice(e);
+                }
+            }
+            None => positional_encoding(points, self.frequencies, &mut out),
+        }
+        out
+    }
+
+    /// `(n x outputs)` for `points` (n x 3), keeping what backward needs.
+    pub fn forward(&self, params: &[f32], points: &[f32], level_weight: &[f32], cache: &mut FieldCache) -> Vec<f32> {
+        let input = self.encode(params, points, level_weight);
+        cache.points = points.to_vec();
+        self.mlp.forward(params, &input, points.len() / 3, &mut cache.mlp)
+    }
+
+    /// Add the parameter gradients of `d_out` (n x outputs) into `grad`.
+    pub fn backward(&self, params: &[f32], cache: &FieldCache, level_weight: &[f32], d_out: &[f32], grad: &mut [f32]) {
+        let d_in = self.mlp.backward(params, &cache.mlp, d_out, grad);
+        if let Some(g) = &self.grid {
+            let width = self.mlp.inputs();
+            let d_enc: Vec<f32> = d_in.chunks_exact(width).flat_map(|row| row[3..].iter().copied()).collect();
+            g.backward(&cache.points, level_weight, &d_enc, grad);
+        }
+    }
+
+    /// The SDF alone (inference).
+    pub fn sdf(&self, params: &[f32], points: &[f32], level_weight: &[f32]) -> Vec<f32> {
+        let input = self.encode(params, points, level_weight);
+        let out = self.mlp.infer(params, &input, points.len() / 3);
+        out.chunks_exact(self.outputs()).map(|r| r[0]).collect()
+    }
+
+    fn init(&self, params: &mut [f32], rng: &mut Rng) {
+        self.mlp.init(params, Init::Sphere(0.5), rng);
+        if let Some(g) = &self.grid {
+            g.init(params, rng);
+        }
+    }
+}
+
+/// Everything the radiance networks see at a batch of `n` samples (row-major `n x k`).
+pub struct ShadingInput<'a> {
+    /// Sample positions (n x 3).
+    pub points: &'a [f32],
+    /// Unit normals (n x 3).
+    pub normals: &'a [f32],
+    /// Field features (n x features).
+    pub features: &'a [f32],
+    /// Unit directions towards the camera (n x 3).
+    pub view: &'a [f32],
+    /// The ray's Stokes frame x axis (n x 3).
+    pub frame_x: &'a [f32],
+    /// The ray's Stokes frame y axis (n x 3).
+    pub frame_y: &'a [f32],
+}
+
+/// Values per sample of the shaded Stokes vector: S0, S1, S2 for R, G, B.
+pub const STOKES: usize = 9;
+
+/// What [`Radiance::shade`] keeps for the backward pass.
+#[derive(Default)]
+pub struct ShadingCache {
+    diffuse_only: bool,
+    diffuse: MlpCache,
+    roughness: MlpCache,
+    specular: MlpCache,
+    diffuse_rgb: Vec<f32>,
+    specular_rgb: Vec<f32>,
+    roughness_value: Vec<f32>,
+    ide_jacobian: Vec<[([f32; 3], f32); IDE_WIDTH]>,
+}
+
+/// The three radiance networks.
+#[derive(Clone, Debug)]
+pub struct Radiance {
+    diffuse: Mlp,
+    roughness: Mlp,
+    specular: Mlp,
+    features: usize,
+}
+
+fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+impl Radiance {
+    fn new(layout: &mut Layout, config: &ModelConfig) -> Self {
+        let (f, h, d) = (config.features, config.color_hidden, config.color_depth);
+        Self {
+            diffuse: Mlp::new(layout, 6 + f, h, d, 3, Activation::Relu, None),
+            roughness: Mlp::new(layout, 3 + f, h, d.min(2), 1, Activation::Relu, None),
+            specular: Mlp::new(layout, IDE_WIDTH + 1 + f, h, d, 3, Activation::Relu, None),
+            features: f,
+        }
+    }
+
+    fn init(&self, params: &mut [f32], rng: &mut Rng) {
+        for mlp in [&self.diffuse, &self.roughness, &self.specular] {
+            mlp.init(params, Init::Default, rng);
+        }
+    }
+
+    /// Shade `n` samples into Stokes vectors (n x 9). `diffuse_only` switches the specular lobe
+    /// off (NeRSP's first iterations).
+    pub fn shade(&self, params: &[f32], s: &ShadingInput, diffuse_only: bool, cache: &mut ShadingCache) -> Vec<f32> {
+        let n = s.points.len() / 3;
+        let f = self.features;
+        let row3 = |a: &[f32], i: usize| [a[3 * i], a[3 * i + 1], a[3 * i + 2]];
+        let mut input = Vec::with_capacity(n * (6 + f));
+        for i in 0..n {
+            input.extend_from_slice(&s.points[3 * i..3 * i + 3]);
+            input.extend_from_slice(&s.normals[3 * i..3 * i + 3]);
+            input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
+        }
+        let diffuse_rgb: Vec<f32> = self.diffuse.forward(params, &input, n, &mut cache.diffuse).iter().map(|&x| sigmoid(x)).collect();
+        cache.diffuse_only = diffuse_only;
+        let mut specular_rgb = vec![0f32; 3 * n];
+        if !diffuse_only {
+            let mut input = Vec::with_capacity(n * (3 + f));
+            for i in 0..n {
+                input.extend_from_slice(&s.points[3 * i..3 * i + 3]);
+                input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
+            }
+            cache.roughness_value =
+                self.roughness.forward(params, &input, n, &mut cache.roughness).iter().map(|&x| sigmoid(x)).collect();
+            let mut input = Vec::with_capacity(n * (IDE_WIDTH + 1 + f));
+            cache.ide_jacobian.clear();
+            for i in 0..n {
+                let (nv, v) = (row3(s.normals, i), row3(s.view, i));
+                let c = dot(nv, v);
+                let reflected = [0, 1, 2].map(|k| 2.0 * c * nv[k] - v[k]);
+                let (values, jac) = ide(reflected, cache.roughness_value[i]);
+                input.extend_from_slice(&values);
+                input.push(c);
+                input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
+                cache.ide_jacobian.push(jac);
+            }
+            specular_rgb = self.specular.forward(params, &input, n, &mut cache.specular).iter().map(|&x| sigmoid(x)).collect();
+        }
+        let mut stokes = vec![0f32; STOKES * n];
+        for i in 0..n {
+            let nv = row3(s.normals, i);
+            let ((rho_d, rho_s), _) = degrees(dot(nv, row3(s.view, i)));
+            let ((c2, s2), _) = double_azimuth(nv, row3(s.frame_x, i), row3(s.frame_y, i));
+            let out = &mut stokes[STOKES * i..STOKES * (i + 1)];
+            for ch in 0..3 {
+                let (d, sp) = (diffuse_rgb[3 * i + ch], specular_rgb[3 * i + ch]);
+                let polarized = rho_d * d - rho_s * sp;
+                out[ch] = d + sp;
+                out[3 + ch] = polarized * c2;
+                out[6 + ch] = polarized * s2;
+            }
+        }
+        cache.diffuse_rgb = diffuse_rgb;
+        cache.specular_rgb = specular_rgb;
+        stokes
+    }
+
+    /// Backward of [`Radiance::shade`]: parameter gradients into `grad`; returns the gradients
+    /// with respect to the normals (n x 3) and the features (n x features).
+    pub fn shade_backward(
+        &self,
+        params: &[f32],
+        s: &ShadingInput,
+        cache: &ShadingCache,
+        d_stokes: &[f32],
+        grad: &mut [f32],
+    ) -> (Vec<f32>, Vec<f32>) {
+        let n = s.points.len() / 3;
+        let f = self.features;
+        let row3 = |a: &[f32], i: usize| [a[3 * i], a[3 * i + 1], a[3 * i + 2]];
+        let mut d_normal = vec![0f32; 3 * n];
+        let mut d_features = vec![0f32; f * n];
+        let mut d_diffuse_raw = vec![0f32; 3 * n];
+        let mut d_specular_raw = vec![0f32; 3 * n];
+        let mut d_cos = vec![0f32; n];
+        for i in 0..n {
+            let (nv, v) = (row3(s.normals, i), row3(s.view, i));
+            let c = dot(nv, v);
+            let ((rho_d, rho_s), (drho_d, drho_s)) = degrees(c);
+            let ((c2, s2), (dc2, ds2)) = double_azimuth(nv, row3(s.frame_x, i), row3(s.frame_y, i));
+            let g = &d_stokes[STOKES * i..STOKES * (i + 1)];
+            let (mut g_rho_d, mut g_rho_s, mut g_c2, mut g_s2) = (0.0, 0.0, 0.0, 0.0);
+            for ch in 0..3 {
+                let (d, sp) = (cache.diffuse_rgb[3 * i + ch], cache.specular_rgb[3 * i + ch]);
+                let along = g[3 + ch] * c2 + g[6 + ch] * s2;
+                let polarized = rho_d * d - rho_s * sp;
+                g_rho_d += d * along;
+                g_rho_s -= sp * along;
+                g_c2 += polarized * g[3 + ch];
+                g_s2 += polarized * g[6 + ch];
+                d_diffuse_raw[3 * i + ch] = (g[ch] + rho_d * along) * d * (1.0 - d);
+                if !cache.diffuse_only {
+                    d_specular_raw[3 * i + ch] = (g[ch] - rho_s * along) * sp * (1.0 - sp);
+                }
+            }
+            d_cos[i] = g_rho_d * drho_d + g_rho_s * drho_s;
+            for k in 0..3 {
+                d_normal[3 * i + k] += g_c2 * dc2[k] + g_s2 * ds2[k];
+            }
+        }
+        let d_in = self.diffuse.backward(params, &cache.diffuse, &d_diffuse_raw, grad);
+        let width = 6 + f;
+        for i in 0..n {
+            let row = &d_in[width * i..width * (i + 1)];
+            for k in 0..3 {
+                d_normal[3 * i + k] += row[3 + k];
+            }
+            d_features[f * i..f * (i + 1)].iter_mut().zip(&row[6..]).for_each(|(a, b)| *a += b);
+        }
+        if !cache.diffuse_only {
+            let d_in = self.specular.backward(params, &cache.specular, &d_specular_raw, grad);
+            let width = IDE_WIDTH + 1 + f;
+            let mut d_rough_raw = vec![0f32; n];
+            for i in 0..n {
+                let row = &d_in[width * i..width * (i + 1)];
+                let (nv, v) = (row3(s.normals, i), row3(s.view, i));
+                let c = dot(nv, v);
+                let mut d_reflected = [0f32; 3];
+                let mut d_rough = 0f32;
+                for (k, (dw, dr)) in cache.ide_jacobian[i].iter().enumerate() {
+                    for a in 0..3 {
+                        d_reflected[a] += row[k] * dw[a];
+                    }
+                    d_rough += row[k] * dr;
+                }
+                let r = cache.roughness_value[i];
+                d_rough_raw[i] = d_rough * r * (1.0 - r);
+                // reflected = 2 c n - v, c = n . v (also a direct input).
+                let dc = row[IDE_WIDTH] + 2.0 * dot(d_reflected, nv);
+                for a in 0..3 {
+                    d_normal[3 * i + a] += 2.0 * c * d_reflected[a];
+                }
+                d_cos[i] += dc;
+                d_features[f * i..f * (i + 1)].iter_mut().zip(&row[IDE_WIDTH + 1..]).for_each(|(a, b)| *a += b);
+            }
+            let d_in = self.roughness.backward(params, &cache.roughness, &d_rough_raw, grad);
+            let width = 3 + f;
+            for i in 0..n {
+                d_features[f * i..f * (i + 1)].iter_mut().zip(&d_in[width * i + 3..width * (i + 1)]).for_each(|(a, b)| *a += b);
+            }
+        }
+        for i in 0..n {
+            let v = row3(s.view, i);
+            for a in 0..3 {
+                d_normal[3 * i + a] += d_cos[i] * v[a];
+            }
+        }
+        (d_normal, d_features)
+    }
+}
+
+/// The whole model: field, radiance and the NeuS variance, over one flat parameter vector.
+#[derive(Clone, Debug)]
+pub struct Model {
+    /// Network shapes.
+    pub config: ModelConfig,
+    /// Layout of the parameter vector.
+    pub layout: Layout,
+    /// The SDF field.
+    pub field: Field,
+    /// The radiance networks.
+    pub radiance: Radiance,
+    /// Offset of the variance parameter (`inv_s = exp(10 variance)`).
+    pub variance: usize,
+}
+
+/// NeuS's initial variance parameter.
+pub const INITIAL_VARIANCE: f32 = 0.3;
+
+impl Model {
+    /// Build the shapes of `config`.
+    pub fn new(config: ModelConfig) -> Self {
+        let mut layout = Layout::default();
+        let field = Field::new(&mut layout, &config);
+        let radiance = Radiance::new(&mut layout, &config);
+        let variance = layout.reserve(1, crate::engine::Group::Variance);
+        Self { config, layout, field, radiance, variance }
+    }
+
+    /// Initial parameters (geometric initialisation to a sphere of radius 0.5).
+    pub fn init(&self, seed: u64) -> Vec<f32> {
+        let mut params = vec![0f32; self.layout.len()];
+        let mut rng = Rng::for_pixel(seed, u32::MAX, 0);
+        self.field.init(&mut params, &mut rng);
+        self.radiance.init(&mut params, &mut rng);
+        params[self.variance] = INITIAL_VARIANCE;
+        params
+    }
+
+    /// NeuS's inverse standard deviation `s = exp(10 variance)`.
+    pub fn inv_s(&self, params: &[f32]) -> f32 {
+        (10.0 * params[self.variance]).exp().min(1e6)
+    }
+}
