@@ -35,6 +35,8 @@ enum Command {
     RenderNormals(commands::render_normals::Args),
     /// Align a scan onto a target mesh by a similarity (ICP with scale).
     Align(commands::align::Args),
+    /// Reconstruct a scene with NeRSP: mesh, normal maps, re-rendered Stokes.
+    Recon(commands::recon::Args),
 }
 
 fn main() {
@@ -52,6 +54,7 @@ fn main() {
         Command::Eval(args) => commands::eval::run(args),
         Command::RenderNormals(args) => commands::render_normals::run(args),
         Command::Align(args) => commands::align::run(args),
+        Command::Recon(args) => commands::recon::run(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -1,7 +1,13 @@
 //! NeRSP reconstruction: an SDF trained by volume rendering of Stokes vectors through a
 //! polarimetric BRDF plus the multi-view AoP tangent-space loss, mask and Eikonal losses.
 
+pub mod data;
 pub mod engine;
+pub mod extract;
+pub mod geometric;
 pub mod model;
+pub mod output;
 pub mod pbrdf;
+pub mod reconstruct;
+pub mod train;
 pub mod volume;

@@ -6,6 +6,7 @@ pub mod demo;
 pub mod demosaic;
 pub mod eval;
 pub mod info;
+pub mod recon;
 pub mod render_normals;
 pub mod simulate;
 pub mod stokes;

@@ -1,0 +1,125 @@
+//! NeRSP's geometric cue: the pi/2-ambiguous AoP of every view that sees a surface point
+//! constrains the normal to one of two planes. For a view looking along `d` with AoP `phi` in
+//! its ray's Stokes frame `(x_r, y_r)`, the polarization direction is `e = cos(phi) x_r +
+//! sin(phi) y_r`; diffuse reflection puts the normal in the plane of `d` and `e` (`n . t = 0`
+//! with `t = d x e`), specular reflection in the plane of `d` and `t` (`n . e = 0`). The loss is
+//! `(n . t)^2 (n . e)^2` averaged over the views that see the point (sphere tracing the SDF).
+
+use crate::data::TrainingSet;
+use crate::model::Model;
+use crate::pbrdf::dot;
+
+/// The two tangent directions one view gives at a surface point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tangents {
+    /// `d x e` (zero for diffuse reflection).
+    pub t: [f32; 3],
+    /// `e`, the polarization direction (zero for specular reflection).
+    pub t_hat: [f32; 3],
+}
+
+fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn normalize(a: [f32; 3]) -> [f32; 3] {
+    let l = dot(a, a).sqrt().max(1e-12);
+    a.map(|x| x / l)
+}
+
+/// The loss `(n.t)^2 (n.t_hat)^2` averaged over `views`, and its gradient with respect to the
+/// (unnormalised) normal `n`.
+pub fn tangent_loss(n: [f32; 3], views: &[Tangents]) -> (f32, [f32; 3]) {
+    if views.is_empty() {
+        return (0.0, [0.0; 3]);
+    }
+    let len = dot(n, n).sqrt().max(1e-8);
+    let u = n.map(|x| x / len);
+    let (mut loss, mut du) = (0f32, [0f32; 3]);
+    for v in views {
+        let (a, b) = (dot(u, v.t), dot(u, v.t_hat));
+        loss += a * a * b * b;
+        for k in 0..3 {
+            du[k] += 2.0 * a * b * b * v.t[k] + 2.0 * a * a * b * v.t_hat[k];
+        }
+    }
+    let m = views.len() as f32;
+    let along = dot(du, u);
+    (loss / m, [0, 1, 2].map(|k| (du[k] - u[k] * along) / len / m))
+}
+
+/// Sphere-tracing settings for visibility.
+const START: f32 = 0.02;
+const HIT: f32 = 1e-3;
+const MAX_STEPS: usize = 48;
+
+/// For each surface point (unit frame) with its outward normal, the tangents of every training
+/// view that sees it (in front of the camera, inside the image and the view's mask, facing the
+/// camera and not occluded by the SDF).
+pub fn tangents(set: &TrainingSet, model: &Model, params: &[f32], level_weight: &[f32], points: &[[f32; 3]], normals: &[[f32; 3]]) -> Vec<Vec<Tangents>> {
+    struct Query {
+        point: usize,
+        origin: [f32; 3],
+        dir: [f32; 3],
+        exit: f32,
+        tangents: Tangents,
+    }
+    let mut queries = Vec::new();
+    for (pi, (&x, &n)) in points.iter().zip(normals).enumerate() {
+        let world = set.frame.point_to_world(x);
+        for view in &set.views {
+            let to_camera = normalize([0, 1, 2].map(|k| view.center[k] - x[k]));
+            if dot(to_camera, n) <= 0.0 {
+                continue;
+            }
+            let Some(pixel) = view.camera.project(&world) else { continue };
+            let (w, h) = (view.camera.width as f64, view.camera.height as f64);
+            if !(0.0..w).contains(&pixel.x) || !(0.0..h).contains(&pixel.y) {
+                continue;
+            }
+            let k = pixel.y as usize * view.width() + pixel.x as usize;
+            if !view.mask[k] {
+                continue;
+            }
+            let d_world = (world - view.camera.center()).normalize();
+            let (fx, fy) = view.camera.stokes_frame(&d_world);
+            let (fx, fy) = (set.frame.dir_from_world(&fx), set.frame.dir_from_world(&fy));
+            let d = set.frame.dir_from_world(&d_world);
+            let (s, c) = view.aop[k].sin_cos();
+            let e = [0, 1, 2].map(|a| c * fx[a] + s * fy[a]);
+            let b = dot(x, to_camera);
+            let exit = -b + (b * b - dot(x, x) + 1.0).max(0.0).sqrt();
+            queries.push(Query { point: pi, origin: x, dir: to_camera, exit, tangents: Tangents { t: cross(d, e), t_hat: e } });
+        }
+    }
+    // Batched sphere tracing towards each camera.
+    let mut depth: Vec<f32> = vec![START; queries.len()];
+    let mut occluded = vec![false; queries.len()];
+    let mut active: Vec<usize> = (0..queries.len()).filter(|&q| START < queries[q].exit).collect();
+    for _ in 0..MAX_STEPS {
+        if active.is_empty() {
+            break;
+        }
+        let pts: Vec<f32> = active.iter().flat_map(|&q| [0, 1, 2].map(|k| queries[q].origin[k] + depth[q] * queries[q].dir[k])).collect();
+        let sdf = model.field.sdf(params, &pts, level_weight);
+        let mut next = Vec::with_capacity(active.len());
+        for (&q, &s) in active.iter().zip(&sdf) {
+            if s < HIT {
+                occluded[q] = true;
+                continue;
+            }
+            depth[q] += s;
+            if depth[q] < queries[q].exit {
+                next.push(q);
+            }
+        }
+        active = next;
+    }
+    let mut out = vec![Vec::new(); points.len()];
+    for (q, query) in queries.iter().enumerate() {
+        if !occluded[q] {
+            out[query.point].push(query.tangents);
+        }
+    }
+    out
+}

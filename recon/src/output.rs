@@ -1,0 +1,54 @@
+//! What a reconstruction leaves on disk besides the mesh: per-view normal maps and re-rendered
+//! Stokes images from the trained field, and a picture comparing them with the input.
+
+use crate::data::Frame;
+use crate::model::{Model, STOKES};
+use crate::volume::{sample_depths, Forward, Ray, Sampling};
+use rayon::prelude::*;
+use rmvp_dataset::{Camera, Image, Stokes};
+
+/// Images volume-rendered from the trained field in one view.
+pub struct RenderedView {
+    /// Stokes in the input's units.
+    pub stokes: Stokes,
+    /// Accumulated opacity.
+    pub opacity: Image<f32>,
+    /// World-frame unit normals (0 where the opacity is below 0.5).
+    pub normals: Image<f32>,
+}
+
+/// Render `camera`'s view of the field (`stokes_scale` undoes the training scale).
+pub fn render_view(model: &Model, params: &[f32], level_weight: &[f32], fd_step: f32, sampling: Sampling, frame: &Frame, camera: &Camera, stokes_scale: f32) -> RenderedView {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let rays: Vec<(usize, Ray)> =
+        (0..w * h).filter_map(|k| frame.pixel_ray(camera, (k % w) as u32, (k / w) as u32).map(|r| (k, r))).collect();
+    let results: Vec<(usize, [f32; STOKES], f32, [f32; 3])> = rays
+        .par_chunks(128)
+        .flat_map_iter(|chunk| {
+            let rs: Vec<Ray> = chunk.iter().map(|c| c.1).collect();
+            let depths = sample_depths(model, params, level_weight, &rs, sampling, &vec![0.5; rs.len()]);
+            let fwd = Forward::run(model, params, level_weight, &rs, &depths, fd_step, false);
+            chunk.iter().zip(fwd.rays).map(|(&(k, _), o)| (k, o.stokes, o.opacity, o.normal)).collect::<Vec<_>>()
+        })
+        .collect();
+    let mut s = [0, 1, 2].map(|_| Image::new(w, h, 3));
+    let mut opacity = Image::new(w, h, 1);
+    let mut normals = Image::new(w, h, 3);
+    for (k, st, a, n) in results {
+        for (c, img) in s.iter_mut().enumerate() {
+            img.data_mut()[3 * k..3 * k + 3].copy_from_slice(&[st[3 * c], st[3 * c + 1], st[3 * c + 2]].map(|v| v / stokes_scale));
+        }
+        opacity.data_mut()[k] = a;
+        if a > 0.5 {
+            let world = frame.dir_to_world(n);
+            normals.data_mut()[3 * k..3 * k + 3].copy_from_slice(&[world.x as f32, world.y as f32, world.z as f32]);
+        }
+    }
+    let [s0, s1, s2] = s;
+    RenderedView { stokes: Stokes { s0, s1, s2 }, opacity, normals }
+}
+
+/// An 8-bit picture of world normals (`(n + 1) / 2`, black background).
+pub fn normal_picture(normals: &Image<f32>) -> Image<u8> {
+    normals.map(|v| if v == 0.0 { 0 } else { ((v + 1.0) * 127.5).round().clamp(0.0, 255.0) as u8 })
+}

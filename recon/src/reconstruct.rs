@@ -1,0 +1,163 @@
+//! A whole reconstruction run in an output folder: training with checkpoints and a loss log
+//! (resumable), then the mesh, normal maps, re-rendered Stokes and a comparison picture.
+
+use crate::data::TrainingSet;
+use crate::extract::extract_mesh;
+use crate::model::Preset;
+use crate::output::{normal_picture, render_view};
+use crate::train::{StepReport, TrainConfig, Trainer};
+use rmvp_dataset::io::atomic::write_bytes_atomically;
+use rmvp_dataset::io::{exr, png};
+use rmvp_dataset::visualize::{aop_picture, contact_sheet, preview};
+use rmvp_dataset::{Error, Image, Result, Scene, Split};
+use std::io::Write;
+use std::path::Path;
+
+/// What the user chose.
+#[derive(Clone, Debug)]
+pub struct Options {
+    /// Model preset.
+    pub preset: Preset,
+    /// Iterations (default: the preset's).
+    pub iterations: Option<u32>,
+    /// Use the photometric cue.
+    pub photometric: bool,
+    /// Use the geometric cue.
+    pub geometric: bool,
+    /// Continue from `checkpoint.bin` in the output folder.
+    pub resume: bool,
+    /// Marching grid cells per axis.
+    pub mesh_resolution: usize,
+    /// Iterations between checkpoints.
+    pub checkpoint_every: u32,
+    /// Rays per batch (default: the preset's).
+    pub batch_rays: Option<usize>,
+    /// Random seed.
+    pub seed: u64,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            preset: Preset::Fast,
+            iterations: None,
+            photometric: true,
+            geometric: true,
+            resume: false,
+            mesh_resolution: 256,
+            checkpoint_every: 500,
+            batch_rays: None,
+            seed: 0,
+        }
+    }
+}
+
+impl Options {
+    /// The training configuration these options give.
+    pub fn config(&self) -> TrainConfig {
+        let iterations = self.iterations.unwrap_or(match self.preset {
+            Preset::Fast => 3000,
+            Preset::Paper => 100_000,
+        });
+        let mut config = TrainConfig::preset(self.preset, iterations);
+        config.photometric = self.photometric;
+        config.geometric = self.geometric;
+        config.seed = self.seed;
+        if let Some(b) = self.batch_rays {
+            config.batch_rays = b;
+        }
+        config
+    }
+}
+
+/// Files of an output folder.
+pub const CHECKPOINT: &str = "checkpoint.bin";
+/// The loss log, one JSON object per iteration.
+pub const LOG: &str = "log.jsonl";
+/// The extracted surface, world frame.
+pub const MESH: &str = "mesh.ply";
+
+/// Train on `scene` into `out`, calling `on_step` after every iteration, then write the results.
+pub fn reconstruct(scene: &Scene, out: &Path, options: &Options, mut on_step: impl FnMut(&StepReport, &Trainer)) -> Result<Trainer> {
+    if options.photometric == options.geometric && !options.photometric {
+        return Err(Error::invalid("both cues are switched off: nothing to train"));
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let config = options.config();
+    let set = TrainingSet::from_scene(scene, config.margin)?;
+    let checkpoint = out.join(CHECKPOINT);
+    let log_path = out.join(LOG);
+    let mut trainer = if options.resume && checkpoint.exists() {
+        let t = Trainer::load_checkpoint(&checkpoint, set)?;
+        if t.config != config {
+            return Err(Error::format(&checkpoint, "was written with other settings (preset, iterations or switches); resume with the same ones"));
+        }
+        t
+    } else {
+        Trainer::new(config, set)
+    };
+    // The log keeps exactly the iterations the checkpoint has seen.
+    let kept: String = match std::fs::read_to_string(&log_path) {
+        Ok(text) if trainer.iteration > 0 => text.lines().take(trainer.iteration as usize).map(|l| format!("{l}\n")).collect(),
+        _ => String::new(),
+    };
+    write_bytes_atomically(&log_path, kept.as_bytes())?;
+    let mut log = std::fs::OpenOptions::new().append(true).open(&log_path).map_err(|e| Error::io(&log_path, e))?;
+    while trainer.iteration < trainer.config.iterations {
+        let report = trainer.step();
+        let line = serde_json::to_string(&report).map_err(|e| Error::invalid(e.to_string()))?;
+        writeln!(log, "{line}").map_err(|e| Error::io(&log_path, e))?;
+        if trainer.iteration % options.checkpoint_every == 0 || trainer.iteration == trainer.config.iterations {
+            log.sync_data().map_err(|e| Error::io(&log_path, e))?;
+            trainer.save_checkpoint(&checkpoint)?;
+        }
+        on_step(&report, &trainer);
+    }
+    write_results(&trainer, scene, out, options.mesh_resolution)?;
+    Ok(trainer)
+}
+
+/// Mesh, normal maps (every view), re-rendered Stokes (training views) and `comparison.png`.
+pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, mesh_resolution: usize) -> Result<()> {
+    let lw = trainer.level_weight();
+    let (model, params) = (&trainer.model, &trainer.params);
+    let mesh = extract_mesh(model, params, &lw, mesh_resolution, &trainer.set.frame);
+    if mesh.faces.is_empty() {
+        return Err(Error::invalid("the trained SDF has no zero crossing inside the unit sphere: no surface to extract"));
+    }
+    mesh.write(&out.join(MESH))?;
+    let (normals_dir, stokes_dir) = (out.join("normals"), out.join("stokes"));
+    for d in [&normals_dir, &stokes_dir] {
+        std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
+    }
+    let fd = trainer.fd_step(&lw);
+    let mut tiles = Vec::new();
+    for view in &scene.views {
+        let r = render_view(model, params, &lw, fd, trainer.config.sampling, &trainer.set.frame, &view.camera, trainer.set.stokes_scale);
+        exr::write_exr(&normals_dir.join(format!("{}.exr", view.name)), &r.normals, &["N.X", "N.Y", "N.Z"])?;
+        png::write_png_u8(&normals_dir.join(format!("{}.png", view.name)), &normal_picture(&r.normals))?;
+        if view.split != Split::Train {
+            continue;
+        }
+        for (name, img) in [("s0", &r.stokes.s0), ("s1", &r.stokes.s1), ("s2", &r.stokes.s2)] {
+            exr::write_exr(&stokes_dir.join(format!("{}_{name}.exr", view.name)), img, &["R", "G", "B"])?;
+        }
+        if let Some(input) = &view.stokes {
+            let mask = view.mask.as_ref();
+            let (aop_in, dop_in) = input.aop_dop();
+            let (aop_out, dop_out) = r.stokes.aop_dop();
+            let ours_mask: Image<u8> = r.opacity.map(|a| if a > 0.5 { 255 } else { 0 });
+            tiles.extend([
+                preview(&input.s0),
+                preview(&r.stokes.s0),
+                aop_picture(&aop_in, &dop_in, mask),
+                aop_picture(&aop_out, &dop_out, Some(&ours_mask)),
+                normal_picture(&r.normals),
+            ]);
+        }
+    }
+    if !tiles.is_empty() {
+        png::write_png_u8(&out.join("comparison.png"), &contact_sheet(&tiles, 5))?;
+    }
+    Ok(())
+}

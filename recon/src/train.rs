@@ -1,0 +1,406 @@
+//! The training loop: ray batches, losses (photometric L1 on Stokes, geometric tangent-space,
+//! mask BCE, Eikonal), Adam, non-finite handling and checkpoints that resume bit for bit.
+//!
+//! A batch is cut into a fixed number of chunks whose gradients are summed in order, so results
+//! do not depend on the number of threads, and every random number derives from (seed,
+//! iteration), so a resumed run repeats an uninterrupted one exactly.
+
+use crate::data::TrainingSet;
+use crate::engine::{Adam, AdamConfig};
+use crate::geometric::{tangent_loss, tangents};
+use crate::model::{Model, ModelConfig, Preset, STOKES};
+use crate::volume::{sample_depths, Forward, RayGrad, Sampling};
+use rayon::prelude::*;
+use rmvp_dataset::io::atomic::write_bytes_atomically;
+use rmvp_dataset::{Error, Result};
+use rmvp_render::rng::Rng;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Loss weights (official NeRSP: photometric 1, geometric 1, mask 1, Eikonal 0.1).
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct LossWeights {
+    /// L1 on S0, S1, S2.
+    pub photometric: f32,
+    /// AoP tangent-space consistency.
+    pub geometric: f32,
+    /// Mask binary cross-entropy.
+    pub mask: f32,
+    /// Eikonal.
+    pub eikonal: f32,
+}
+
+/// Everything that defines a training run.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct TrainConfig {
+    /// Network shapes.
+    pub model: ModelConfig,
+    /// Total iterations.
+    pub iterations: u32,
+    /// Rays per iteration.
+    pub batch_rays: usize,
+    /// Samples per ray.
+    pub sampling: Sampling,
+    /// Optimiser.
+    pub adam: AdamConfig,
+    /// Loss weights.
+    pub weights: LossWeights,
+    /// Use the photometric cue (off: MVAS-like, geometric only).
+    pub photometric: bool,
+    /// Use the geometric cue (off: PANDORA-like, photometric only).
+    pub geometric: bool,
+    /// Initial iterations with the diffuse lobe and S0 only, no geometric loss.
+    pub diffuse_only: u32,
+    /// Dilation of the masks that training rays are drawn from, pixels.
+    pub margin: usize,
+    /// Hash-grid levels active at the start; one more every `anneal_every` iterations.
+    pub start_levels: usize,
+    /// Iterations between two hash-grid levels.
+    pub anneal_every: u32,
+    /// Random seed.
+    pub seed: u64,
+}
+
+/// Rays per chunk of a batch; chunks run in parallel and are summed in order.
+const CHUNK_RAYS: usize = 32;
+
+impl TrainConfig {
+    /// The defaults of `preset` for a run of `iterations`.
+    pub fn preset(preset: Preset, iterations: u32) -> Self {
+        let model = ModelConfig::preset(preset);
+        let levels = model.grid.map_or(0, |g| g.0);
+        let start_levels = levels.min(4);
+        let anneal_every = if levels > start_levels { (iterations / 2 / (levels - start_levels) as u32).max(1) } else { 1 };
+        let (batch_rays, sampling, adam) = match preset {
+            Preset::Paper => (
+                512,
+                Sampling { coarse: 64, fine: 64, steps: 4 },
+                AdamConfig { lr_network: 5e-4, lr_grid: 0.0, lr_variance: 5e-4, warmup: 5000.min(iterations / 20), final_fraction: 0.05 },
+            ),
+            Preset::Fast => (
+                512,
+                Sampling { coarse: 32, fine: 32, steps: 4 },
+                AdamConfig { lr_network: 2e-3, lr_grid: 1e-2, lr_variance: 2e-3, warmup: (iterations / 20).min(500), final_fraction: 0.05 },
+            ),
+        };
+        Self {
+            model,
+            iterations,
+            batch_rays,
+            sampling,
+            adam,
+            weights: LossWeights { photometric: 1.0, geometric: 1.0, mask: 1.0, eikonal: 0.1 },
+            photometric: true,
+            geometric: true,
+            diffuse_only: 1000.min(iterations / 10),
+            margin: 8,
+            start_levels,
+            anneal_every,
+            seed: 0,
+        }
+    }
+}
+
+/// One line of the loss log.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct StepReport {
+    /// Iteration this step computed (0-based).
+    pub iteration: u32,
+    /// Weighted total.
+    pub loss: f64,
+    /// Photometric L1 (unweighted).
+    pub photometric: f64,
+    /// Geometric tangent loss (unweighted).
+    pub geometric: f64,
+    /// Mask BCE (unweighted).
+    pub mask: f64,
+    /// Eikonal (unweighted).
+    pub eikonal: f64,
+    /// NeuS sharpness.
+    pub inv_s: f32,
+    /// Rays rendered.
+    pub rays: usize,
+    /// Samples evaluated (each costs 7 field evaluations).
+    pub samples: usize,
+    /// Learning-rate factor of the schedule.
+    pub lr_factor: f32,
+    /// What went wrong, if the step was not applied.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub event: Option<String>,
+}
+
+#[derive(Default)]
+struct ChunkSums {
+    photometric: f64,
+    geometric: f64,
+    mask: f64,
+    eikonal: f64,
+    samples: usize,
+}
+
+/// A model being trained on a training set.
+pub struct Trainer {
+    /// The run's definition.
+    pub config: TrainConfig,
+    /// Network shapes and layout.
+    pub model: Model,
+    /// The data.
+    pub set: TrainingSet,
+    /// Current parameters.
+    pub params: Vec<f32>,
+    /// Optimiser state.
+    pub adam: Adam,
+    /// Next iteration to run.
+    pub iteration: u32,
+    /// Consecutive non-finite steps.
+    bad_steps: u32,
+    /// The last state known to be finite: (params, adam, iteration).
+    safe: Option<(Vec<f32>, Adam, u32)>,
+}
+
+impl Trainer {
+    /// A fresh run.
+    pub fn new(config: TrainConfig, set: TrainingSet) -> Self {
+        let model = Model::new(config.model.clone());
+        let params = model.init(config.seed);
+        let adam = Adam::new(params.len());
+        Self { config, model, set, params, adam, iteration: 0, bad_steps: 0, safe: None }
+    }
+
+    /// Per-level weights of the hash grid at the current iteration (coarse to fine).
+    pub fn level_weight(&self) -> Vec<f32> {
+        let levels = self.model.field.levels();
+        let active = self.config.start_levels + (self.iteration / self.config.anneal_every.max(1)) as usize;
+        (0..levels).map(|l| if l < active { 1.0 } else { 0.0 }).collect()
+    }
+
+    /// Finite-difference step of the normals: the finest active grid cell (Neuralangelo), or
+    /// a fixed 0.005 for the MLP.
+    pub fn fd_step(&self, level_weight: &[f32]) -> f32 {
+        match self.model.field.finest_active(level_weight) {
+            Some(res) => (2.0 / res as f32).max(2e-3),
+            None => 5e-3,
+        }
+    }
+
+    /// Whether the current iteration is in the diffuse-only warm-up.
+    fn warming_up(&self) -> bool {
+        self.config.photometric && self.iteration < self.config.diffuse_only
+    }
+
+    /// Run one iteration; non-finite losses or gradients skip the update (and after three in a
+    /// row roll back to the last safe state), which the report's `event` says.
+    pub fn step(&mut self) -> StepReport {
+        let it = self.iteration;
+        let mut rng = Rng::for_pixel(self.config.seed, it, 0);
+        let batch: Vec<(u32, u32)> = (0..self.config.batch_rays).map(|_| self.set.pool[rng.next_u32() as usize % self.set.pool.len()]).collect();
+        let jitter: Vec<f32> = (0..batch.len()).map(|_| rng.next_f32()).collect();
+        let masked_total = batch.iter().filter(|&&(v, p)| self.set.views[v as usize].mask[p as usize]).count().max(1);
+        let level_weight = self.level_weight();
+        let fd_step = self.fd_step(&level_weight);
+        let warm = self.warming_up();
+        let use_geometric = self.config.geometric && !warm;
+        let samples_per_ray = self.config.sampling.coarse + self.config.sampling.fine;
+        let norm = Norms { rays: batch.len() as f32, masked: masked_total as f32, samples: (batch.len() * samples_per_ray) as f32 };
+
+        let chunks: Vec<(usize, usize)> = (0..batch.len()).step_by(CHUNK_RAYS).map(|s| (s, (s + CHUNK_RAYS).min(batch.len()))).collect();
+        let results: Vec<(Vec<f32>, ChunkSums)> = chunks
+            .par_iter()
+            .map(|&(a, b)| self.chunk(&batch[a..b], &jitter[a..b], &level_weight, fd_step, warm, use_geometric, &norm))
+            .collect();
+        let mut grad = vec![0f32; self.params.len()];
+        let mut sums = ChunkSums::default();
+        for (g, s) in results {
+            grad.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+            sums.photometric += s.photometric;
+            sums.geometric += s.geometric;
+            sums.mask += s.mask;
+            sums.eikonal += s.eikonal;
+            sums.samples += s.samples;
+        }
+        let w = &self.config.weights;
+        let mut report = StepReport {
+            iteration: it,
+            photometric: sums.photometric,
+            geometric: sums.geometric,
+            mask: sums.mask,
+            eikonal: sums.eikonal,
+            loss: w.photometric as f64 * sums.photometric
+                + w.geometric as f64 * sums.geometric
+                + w.mask as f64 * sums.mask
+                + w.eikonal as f64 * sums.eikonal,
+            inv_s: self.model.inv_s(&self.params),
+            rays: batch.len(),
+            samples: sums.samples,
+            lr_factor: Adam::schedule(&self.config.adam, it, self.config.iterations),
+            event: None,
+        };
+        if !report.loss.is_finite() || grad.iter().any(|g| !g.is_finite()) {
+            self.bad_steps += 1;
+            if self.bad_steps >= 3 {
+                if let Some((params, adam, _)) = self.safe.clone() {
+                    self.params = params;
+                    self.adam = adam;
+                    report.event = Some("non-finite loss or gradient three times in a row: rolled back to the last safe state".into());
+                } else {
+                    report.event = Some("non-finite loss or gradient three times in a row, no safe state yet: step skipped".into());
+                }
+                self.bad_steps = 0;
+            } else {
+                report.event = Some("non-finite loss or gradient: step skipped".into());
+            }
+            self.iteration += 1;
+            return report;
+        }
+        self.bad_steps = 0;
+        self.adam.step(&self.model.layout, &self.config.adam, &mut self.params, &grad, it, self.config.iterations);
+        self.iteration += 1;
+        if self.iteration % 100 == 0 {
+            self.safe = Some((self.params.clone(), self.adam.clone(), self.iteration));
+        }
+        report
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn chunk(
+        &self,
+        batch: &[(u32, u32)],
+        jitter: &[f32],
+        level_weight: &[f32],
+        fd_step: f32,
+        warm: bool,
+        use_geometric: bool,
+        norm: &Norms,
+    ) -> (Vec<f32>, ChunkSums) {
+        let set = &self.set;
+        let rays: Vec<_> = batch.iter().map(|&(v, p)| set.ray(v, p)).collect();
+        let depths = sample_depths(&self.model, &self.params, level_weight, &rays, self.config.sampling, jitter);
+        let fwd = Forward::run(&self.model, &self.params, level_weight, &rays, &depths, fd_step, warm);
+        let w = &self.config.weights;
+        let mut sums = ChunkSums { samples: fwd.depths.len(), ..Default::default() };
+        let mut grads = vec![RayGrad::default(); rays.len()];
+        let mut surface = Vec::new();
+        for (r, (&(v, p), out)) in batch.iter().zip(&fwd.rays).enumerate() {
+            let view = &set.views[v as usize];
+            let inside = view.mask[p as usize];
+            // Mask BCE on the accumulated opacity.
+            let a = out.opacity.clamp(1e-3, 1.0 - 1e-3);
+            let m = inside as u8 as f32;
+            sums.mask += -(m * a.ln() + (1.0 - m) * (1.0 - a).ln()) as f64 / norm.rays as f64;
+            if (1e-3..=1.0 - 1e-3).contains(&out.opacity) {
+                grads[r].opacity = w.mask * -(m / a - (1.0 - m) / (1.0 - a)) / norm.rays;
+            }
+            if !inside {
+                continue;
+            }
+            if self.config.photometric {
+                let target = &view.stokes[STOKES * p as usize..STOKES * (p as usize + 1)];
+                let used = if warm { 3 } else { STOKES };
+                for k in 0..used {
+                    let diff = out.stokes[k] - target[k];
+                    sums.photometric += diff.abs() as f64 / 3.0 / norm.masked as f64;
+                    grads[r].stokes[k] = w.photometric * diff.signum() / 3.0 / norm.masked;
+                }
+            }
+            if use_geometric && out.opacity > 0.5 {
+                let t = out.depth / out.opacity;
+                surface.push((r, rays[r].at(t), out.normal));
+            }
+        }
+        if use_geometric && !surface.is_empty() {
+            let points: Vec<[f32; 3]> = surface.iter().map(|s| s.1).collect();
+            let normals: Vec<[f32; 3]> = surface.iter().map(|s| s.2).collect();
+            let views = tangents(set, &self.model, &self.params, level_weight, &points, &normals);
+            for ((r, _, n), ts) in surface.iter().zip(&views) {
+                let (loss, dn) = tangent_loss(*n, ts);
+                sums.geometric += loss as f64 / norm.masked as f64;
+                grads[*r].normal = dn.map(|d| d * w.geometric / norm.masked);
+            }
+        }
+        // Eikonal on every sample's finite-difference gradient.
+        let mut d_gradients = vec![0f32; fwd.gradients.len()];
+        for (g, d) in fwd.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)) {
+            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
+            sums.eikonal += ((len - 1.0) * (len - 1.0)) as f64 / norm.samples as f64;
+            let s = w.eikonal * 2.0 * (len - 1.0) / len / norm.samples;
+            for k in 0..3 {
+                d[k] = s * g[k];
+            }
+        }
+        let mut grad = vec![0f32; self.params.len()];
+        fwd.backward(&self.model, &self.params, level_weight, &grads, &d_gradients, &mut grad);
+        (grad, sums)
+    }
+
+    /// Save parameters, optimiser state and iteration to `path` (atomically).
+    pub fn save_checkpoint(&self, path: &Path) -> Result<()> {
+        let header = serde_json::to_vec(&CheckpointHeader {
+            format: CHECKPOINT_FORMAT.into(),
+            config: self.config.clone(),
+            iteration: self.iteration,
+            adam_steps: self.adam.steps,
+            parameters: self.params.len(),
+        })
+        .map_err(|e| Error::invalid(e.to_string()))?;
+        let mut bytes = Vec::with_capacity(16 + header.len() + 12 * self.params.len());
+        bytes.extend_from_slice(CHECKPOINT_MAGIC);
+        bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
+        bytes.extend_from_slice(&header);
+        for v in [&self.params, &self.adam.m, &self.adam.v] {
+            for x in v.iter() {
+                bytes.extend_from_slice(&x.to_le_bytes());
+            }
+        }
+        write_bytes_atomically(path, &bytes)
+    }
+
+    /// Restore a run from a checkpoint written by [`Trainer::save_checkpoint`]; the training
+    /// set must be the one it was trained on.
+    pub fn load_checkpoint(path: &Path, set: TrainingSet) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let bad = |m: &str| Error::format(path, m);
+        if bytes.len() < 16 || &bytes[..8] != CHECKPOINT_MAGIC {
+            return Err(bad("not an rmvp checkpoint"));
+        }
+        let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
+        let header: CheckpointHeader = serde_json::from_slice(bytes.get(16..16 + len).ok_or_else(|| bad("truncated header"))?)
+            .map_err(|e| bad(&format!("header: {e}")))?;
+        let mut trainer = Self::new(header.config, set);
+        let n = trainer.params.len();
+        if header.parameters != n {
+            return Err(bad(&format!("{} parameters, the model has {n}", header.parameters)));
+        }
+        let body = &bytes[16 + len..];
+        if body.len() != 12 * n {
+            return Err(bad(&format!("truncated: {} bytes of parameters and optimiser state, expected {}", body.len(), 12 * n)));
+        }
+        let floats: Vec<f32> = body.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))).collect();
+        trainer.params = floats[..n].to_vec();
+        trainer.adam.m = floats[n..2 * n].to_vec();
+        trainer.adam.v = floats[2 * n..].to_vec();
+        trainer.adam.steps = header.adam_steps;
+        trainer.iteration = header.iteration;
+        if trainer.params.iter().any(|p| !p.is_finite()) {
+            return Err(bad("non-finite parameters"));
+        }
+        Ok(trainer)
+    }
+}
+
+struct Norms {
+    rays: f32,
+    masked: f32,
+    samples: f32,
+}
+
+const CHECKPOINT_MAGIC: &[u8; 8] = b"RMVPCKPT";
+const CHECKPOINT_FORMAT: &str = "rmvp-recon-checkpoint-1";
+
+#[derive(Serialize, Deserialize)]
+struct CheckpointHeader {
+    format: String,
+    config: TrainConfig,
+    iteration: u32,
+    adam_steps: u32,
+    parameters: usize,
+}

@@ -1,0 +1,87 @@
+//! `rmvp recon SCENE -o DIR [--preset fast|paper] [--iters N] [--no-geometric] [--no-photometric]
+//! [--resume] [--mesh-res N]`.
+
+use super::progress;
+use anyhow::{Context, Result};
+use rmvp_dataset::layout::read_scene;
+use rmvp_recon::model::Preset;
+use rmvp_recon::reconstruct::{reconstruct, Options};
+use std::path::PathBuf;
+
+/// Arguments of `rmvp recon`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Scene folder (NeRSP or rmvp layout) with Stokes images and masks.
+    scene: PathBuf,
+    /// Output folder: mesh.ply, normals/, stokes/, comparison.png, log.jsonl, checkpoint.bin.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Model preset: `fast` (hash grid, minutes on a CPU) or `paper` (NeRSP's 8x256 MLP).
+    #[arg(long, default_value = "fast", value_parser = parse_preset)]
+    preset: Preset,
+    /// Training iterations (default: 3000 fast, 100000 paper).
+    #[arg(long)]
+    iters: Option<u32>,
+    /// Photometric cue only (PANDORA-like ablation).
+    #[arg(long)]
+    no_geometric: bool,
+    /// Geometric cue only (MVAS-like ablation).
+    #[arg(long)]
+    no_photometric: bool,
+    /// Continue from the output folder's checkpoint.
+    #[arg(long)]
+    resume: bool,
+    /// Marching grid cells per axis for the mesh.
+    #[arg(long, default_value_t = 256)]
+    mesh_res: usize,
+    /// Rays per iteration (default: 512).
+    #[arg(long)]
+    batch: Option<usize>,
+    /// Iterations between checkpoints.
+    #[arg(long, default_value_t = 500)]
+    checkpoint_every: u32,
+    /// Random seed.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+}
+
+fn parse_preset(s: &str) -> Result<Preset, String> {
+    match s {
+        "fast" => Ok(Preset::Fast),
+        "paper" => Ok(Preset::Paper),
+        other => Err(format!("unknown preset {other:?} (fast or paper)")),
+    }
+}
+
+/// Run the command.
+pub fn run(args: Args) -> Result<()> {
+    let scene = read_scene(&args.scene)?;
+    let options = Options {
+        preset: args.preset,
+        iterations: args.iters,
+        photometric: !args.no_photometric,
+        geometric: !args.no_geometric,
+        resume: args.resume,
+        mesh_resolution: args.mesh_res,
+        checkpoint_every: args.checkpoint_every.max(1),
+        batch_rays: args.batch,
+        seed: args.seed,
+    };
+    let total = options.config().iterations;
+    let bar = progress(total as u64, "recon");
+    let trainer = reconstruct(&scene, &args.output, &options, |report, trainer| {
+        bar.set_position(trainer.iteration as u64);
+        match &report.event {
+            Some(event) => bar.println(format!("iteration {}: {event}", report.iteration)),
+            None if report.iteration % 10 == 0 => bar.set_message(format!(
+                "loss {:.4} (photo {:.4} geo {:.5} mask {:.4} eik {:.4}) s {:.0}",
+                report.loss, report.photometric, report.geometric, report.mask, report.eikonal, report.inv_s
+            )),
+            None => {}
+        }
+    })
+    .with_context(|| format!("reconstructing {}", args.scene.display()))?;
+    bar.finish();
+    println!("{} iterations; results in {}", trainer.iteration, args.output.display());
+    Ok(())
+}
