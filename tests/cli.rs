@@ -28,7 +28,7 @@ fn s(p: &Path) -> &str {
 fn demo_simulates_captures_and_builds_a_valid_dataset() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("demo");
-    let stdout = ok(&["demo", "-o", s(&out), "--res", "192x160", "--spp", "8"]);
+    let stdout = ok(&["demo", "-o", s(&out), "--res", "192x160", "--spp", "8", "--recon-iters", "20", "--mesh-res", "48"]);
     assert!(stdout.contains("AoP error median"), "{stdout}");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
@@ -42,6 +42,12 @@ fn demo_simulates_captures_and_builds_a_valid_dataset() {
     assert_eq!(sheet.size(), (4 * 196 + 4, 6 * 164 + 4));
     let info = ok(&["info", s(&out.join("captured"))]);
     assert!(info.contains("6 (6 train, 0 eval)"), "{info}");
+    // The reconstruction stage ran and was evaluated (20 iterations: a coarse blob, not a shape).
+    assert_eq!(report["reconstruction"]["iterations"], 20);
+    assert!(report["reconstruction"]["normal_mae_deg"].as_f64().unwrap().is_finite(), "{report}");
+    for file in ["mesh.ply", "comparison.png", "log.jsonl", "checkpoint.bin", "normals/000.exr", "stokes/000_s0.exr"] {
+        assert!(out.join("recon").join(file).is_file(), "{file}");
+    }
 
     // One raw frame through `rmvp demosaic` gives the same Stokes as the demo's processing.
     let raw = out.join("simulated/raw");
@@ -305,4 +311,31 @@ fn align_recovers_a_moved_scaled_copy() {
     ]))
     .unwrap();
     assert!(eval["chamfer"].as_f64().unwrap() < 1e-3, "{eval}");
+}
+
+#[test]
+fn recon_resumes_where_it_stopped_and_reports_bad_input() {
+    let tmp = tempfile::tempdir().unwrap();
+    let fixture = rmvp_testkit::fixture("spot_nersp");
+    let (straight, stopped) = (tmp.path().join("straight"), tmp.path().join("stopped"));
+    let recon = |dir: &Path, extra: &[&str]| {
+        let mut args = vec!["recon", s(&fixture), "-o", s(dir), "--iters", "6", "--batch", "32", "--mesh-res", "32"];
+        args.extend_from_slice(extra);
+        ok(&args)
+    };
+    assert!(recon(&straight, &[]).contains("6 iterations"));
+    assert!(recon(&stopped, &["--stop-after", "4"]).contains("stopped at iteration 4 of 6"));
+    assert!(!stopped.join("mesh.ply").exists());
+    assert!(recon(&stopped, &["--resume"]).contains("6 iterations"));
+    // Bit for bit: the same loss log and the same mesh as the uninterrupted run.
+    let log = std::fs::read_to_string(straight.join("log.jsonl")).unwrap();
+    assert_eq!(log.lines().count(), 6);
+    assert_eq!(log, std::fs::read_to_string(stopped.join("log.jsonl")).unwrap());
+    assert_eq!(std::fs::read(straight.join("mesh.ply")).unwrap(), std::fs::read(stopped.join("mesh.ply")).unwrap());
+    for file in ["comparison.png", "normals/006.png", "normals/006.exr", "stokes/000_s2.exr"] {
+        assert!(stopped.join(file).is_file(), "{file}");
+    }
+
+    let err = fails(&["recon", s(&tmp.path().join("missing")), "-o", s(&tmp.path().join("x"))]);
+    assert!(err.contains("missing"), "{err}");
 }

@@ -64,7 +64,7 @@ impl ModelConfig {
                 sdf_depth: 2,
                 sdf_skip: None,
                 frequencies: 0,
-                grid: Some((12, 17, 16, 512)),
+                grid: Some((8, 16, 16, 256)),
                 color_hidden: 64,
                 color_depth: 2,
             },
@@ -425,6 +425,12 @@ impl Model {
 
     /// NeuS's inverse standard deviation `s = exp(10 variance)`.
     pub fn inv_s(&self, params: &[f32]) -> f32 {
-        (10.0 * params[self.variance]).exp().min(1e6)
+        // Capped at 1e6, but a NaN variance stays NaN (f32::min would hide it).
+        let s = (10.0 * params[self.variance]).exp();
+        if s > 1e6 {
+            1e6
+        } else {
+            s
+        }
     }
 }

@@ -34,6 +34,9 @@ pub struct Options {
     pub batch_rays: Option<usize>,
     /// Random seed.
     pub seed: u64,
+    /// Train at most this many iterations in this call, then checkpoint and return without
+    /// results (time-boxed sessions; continue with `resume`).
+    pub stop_after: Option<u32>,
 }
 
 impl Default for Options {
@@ -48,6 +51,7 @@ impl Default for Options {
             checkpoint_every: 500,
             batch_rays: None,
             seed: 0,
+            stop_after: None,
         }
     }
 }
@@ -77,7 +81,8 @@ pub const LOG: &str = "log.jsonl";
 /// The extracted surface, world frame.
 pub const MESH: &str = "mesh.ply";
 
-/// Train on `scene` into `out`, calling `on_step` after every iteration, then write the results.
+/// Train on `scene` into `out`, calling `on_step` after every iteration, then write the results
+/// (unless `stop_after` ended the session early: then the returned trainer has not finished).
 pub fn reconstruct(scene: &Scene, out: &Path, options: &Options, mut on_step: impl FnMut(&StepReport, &Trainer)) -> Result<Trainer> {
     if options.photometric == options.geometric && !options.photometric {
         return Err(Error::invalid("both cues are switched off: nothing to train"));
@@ -103,7 +108,14 @@ pub fn reconstruct(scene: &Scene, out: &Path, options: &Options, mut on_step: im
     };
     write_bytes_atomically(&log_path, kept.as_bytes())?;
     let mut log = std::fs::OpenOptions::new().append(true).open(&log_path).map_err(|e| Error::io(&log_path, e))?;
+    let mut budget = options.stop_after.unwrap_or(u32::MAX);
     while trainer.iteration < trainer.config.iterations {
+        if budget == 0 {
+            log.sync_data().map_err(|e| Error::io(&log_path, e))?;
+            trainer.save_checkpoint(&checkpoint)?;
+            return Ok(trainer);
+        }
+        budget -= 1;
         let report = trainer.step();
         let line = serde_json::to_string(&report).map_err(|e| Error::invalid(e.to_string()))?;
         writeln!(log, "{line}").map_err(|e| Error::io(&log_path, e))?;

@@ -154,8 +154,8 @@ pub struct Trainer {
     pub iteration: u32,
     /// Consecutive non-finite steps.
     bad_steps: u32,
-    /// The last state known to be finite: (params, adam, iteration).
-    safe: Option<(Vec<f32>, Adam, u32)>,
+    /// The last state known to be finite (every 100 iterations): (params, adam, iteration).
+    safe: (Vec<f32>, Adam, u32),
 }
 
 impl Trainer {
@@ -164,7 +164,8 @@ impl Trainer {
         let model = Model::new(config.model.clone());
         let params = model.init(config.seed);
         let adam = Adam::new(params.len());
-        Self { config, model, set, params, adam, iteration: 0, bad_steps: 0, safe: None }
+        let safe = (params.clone(), adam.clone(), 0);
+        Self { config, model, set, params, adam, iteration: 0, bad_steps: 0, safe }
     }
 
     /// Per-level weights of the hash grid at the current iteration (coarse to fine).
@@ -238,13 +239,10 @@ impl Trainer {
         if !report.loss.is_finite() || grad.iter().any(|g| !g.is_finite()) {
             self.bad_steps += 1;
             if self.bad_steps >= 3 {
-                if let Some((params, adam, _)) = self.safe.clone() {
-                    self.params = params;
-                    self.adam = adam;
-                    report.event = Some("non-finite loss or gradient three times in a row: rolled back to the last safe state".into());
-                } else {
-                    report.event = Some("non-finite loss or gradient three times in a row, no safe state yet: step skipped".into());
-                }
+                let (params, adam, at) = self.safe.clone();
+                self.params = params;
+                self.adam = adam;
+                report.event = Some(format!("non-finite loss or gradient three times in a row: rolled back to the state of iteration {at}"));
                 self.bad_steps = 0;
             } else {
                 report.event = Some("non-finite loss or gradient: step skipped".into());
@@ -256,7 +254,7 @@ impl Trainer {
         self.adam.step(&self.model.layout, &self.config.adam, &mut self.params, &grad, it, self.config.iterations);
         self.iteration += 1;
         if self.iteration % 100 == 0 {
-            self.safe = Some((self.params.clone(), self.adam.clone(), self.iteration));
+            self.safe = (self.params.clone(), self.adam.clone(), self.iteration);
         }
         report
     }
@@ -383,6 +381,7 @@ impl Trainer {
         if trainer.params.iter().any(|p| !p.is_finite()) {
             return Err(bad("non-finite parameters"));
         }
+        trainer.safe = (trainer.params.clone(), trainer.adam.clone(), trainer.iteration);
         Ok(trainer)
     }
 }

@@ -43,6 +43,9 @@ pub struct Args {
     /// Random seed.
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Stop after this many iterations in this session (checkpointed; continue with --resume).
+    #[arg(long)]
+    stop_after: Option<u32>,
 }
 
 fn parse_preset(s: &str) -> Result<Preset, String> {
@@ -66,6 +69,7 @@ pub fn run(args: Args) -> Result<()> {
         checkpoint_every: args.checkpoint_every.max(1),
         batch_rays: args.batch,
         seed: args.seed,
+        stop_after: args.stop_after,
     };
     let total = options.config().iterations;
     let bar = progress(total as u64, "recon");
@@ -82,6 +86,10 @@ pub fn run(args: Args) -> Result<()> {
     })
     .with_context(|| format!("reconstructing {}", args.scene.display()))?;
     bar.finish();
-    println!("{} iterations; results in {}", trainer.iteration, args.output.display());
+    if trainer.iteration < trainer.config.iterations {
+        println!("stopped at iteration {} of {}; continue with --resume", trainer.iteration, trainer.config.iterations);
+    } else {
+        println!("{} iterations; results in {}", trainer.iteration, args.output.display());
+    }
     Ok(())
 }

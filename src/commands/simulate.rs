@@ -151,6 +151,9 @@ pub fn simulate(args: &Args) -> Result<Scene> {
         )?;
         scene.views.push(render.into_view(format!("{i:03}"), Split::Train, camera.clone(), scale));
     }
+    // IDR/NeuS scale_mat: a sphere 10 % larger than the object's bounding sphere about the
+    // origin, so that reconstruction's unit sphere encloses it with a margin.
+    scene.normalization = nalgebra::Matrix4::new_scaling(1.1 * radius);
     scene.mesh = Some(mesh);
     scene.env_map = Some(env_image);
     scene.metadata = json!({

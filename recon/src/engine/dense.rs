@@ -14,26 +14,50 @@ pub enum Activation {
 }
 
 impl Activation {
-    fn apply(self, x: f32) -> f32 {
+    /// `out = f(x)` elementwise.
+    fn apply(self, x: &[f32], out: &mut Vec<f32>) {
+        out.clear();
         match self {
-            Activation::Relu => x.max(0.0),
-            Activation::Softplus(beta) => {
-                let z = beta * x;
-                if z > 20.0 {
-                    x
-                } else {
-                    z.exp().ln_1p() / beta
-                }
-            }
+            Activation::Relu => out.extend(x.iter().map(|&v| v.max(0.0))),
+            // softplus(x) = max(x, 0) + log1p(exp(-|beta x|)) / beta, branch-free so it vectorises.
+            Activation::Softplus(beta) => out.extend(x.iter().map(|&v| v.max(0.0) + log1p_unit(exp_neg((beta * v).abs())) / beta)),
         }
     }
 
-    fn derivative(self, x: f32) -> f32 {
+    /// `d *= f'(x)` elementwise.
+    fn scale_by_derivative(self, x: &[f32], d: &mut [f32]) {
         match self {
-            Activation::Relu => (x > 0.0) as u8 as f32,
-            Activation::Softplus(beta) => 1.0 / (1.0 + (-beta * x).exp()),
+            Activation::Relu => d.iter_mut().zip(x).for_each(|(g, &v)| *g = if v > 0.0 { *g } else { 0.0 }),
+            Activation::Softplus(beta) => d.iter_mut().zip(x).for_each(|(g, &v)| {
+                // sigmoid(beta x) from e = exp(-|beta x|).
+                let e = exp_neg((beta * v).abs());
+                let s = if v >= 0.0 { 1.0 } else { e };
+                *g *= s / (1.0 + e);
+            }),
         }
     }
+}
+
+/// `exp(-a)` for `a >= 0` (held at `exp(-87)` beyond), relative error below 3e-7: Cody-Waite range reduction
+/// and a degree-6 polynomial, written without branches so that loops vectorise.
+#[inline(always)]
+pub fn exp_neg(a: f32) -> f32 {
+    let x = (-a).max(-87.0);
+    // Round to nearest by the 1.5 * 2^23 trick (no libm call without SSE4.1).
+    let n = (x * std::f32::consts::LOG2_E + 12_582_912.0) - 12_582_912.0;
+    let r = x - n * 0.693_145_75 - n * 1.428_606_8e-6;
+    let p = 1.0 + r * (1.0 + r * (0.5 + r * (0.166_666_67 + r * (0.041_666_41 + r * (0.008_333_452 + r * 0.001_394_973)))));
+    p * f32::from_bits(((n as i32 + 127) as u32) << 23)
+}
+
+/// `ln(1 + u)` for `u` in `[0, 1]`, absolute error below 1e-7: `2 atanh(u / (2 + u))` as an odd
+/// series (the argument stays below 1/3).
+#[inline(always)]
+pub fn log1p_unit(u: f32) -> f32 {
+    let s = u / (2.0 + u);
+    let s2 = s * s;
+    let series = 1.0 + s2 * (1.0 / 3.0 + s2 * (0.2 + s2 * (1.0 / 7.0 + s2 * (1.0 / 9.0 + s2 * (1.0 / 11.0 + s2 * (1.0 / 13.0))))));
+    2.0 * s * series
 }
 
 #[derive(Clone, Debug)]
@@ -192,7 +216,8 @@ impl Mlp {
             let next = if last {
                 out
             } else {
-                let act: Vec<f32> = out.iter().map(|&x| self.activation.apply(x)).collect();
+                let mut act = Vec::with_capacity(out.len());
+                self.activation.apply(&out, &mut act);
                 if let Some(c) = cache.as_deref_mut() {
                     c.pre.push(out);
                 }
@@ -215,8 +240,7 @@ impl Mlp {
         for l in (0..self.layers.len()).rev() {
             let layer = &self.layers[l];
             if l + 1 < self.layers.len() {
-                let pre = &cache.pre[l];
-                d.iter_mut().zip(pre).for_each(|(g, &x)| *g *= self.activation.derivative(x));
+                self.activation.scale_by_derivative(&cache.pre[l], &mut d);
             }
             let x = &cache.layer_inputs[l];
             // dW += d^T x, db += column sums of d.
@@ -310,5 +334,24 @@ fn gemm(m: usize, k: usize, n: usize, a: (&[f32], isize, isize), b: (&[f32], isi
             n as isize,
             1,
         );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_exp_and_log1p_match_libm() {
+        for k in 0..=1700 {
+            let a = k as f32 * 0.05;
+            let (got, want) = (exp_neg(a), (-a as f64).exp());
+            assert!(((got as f64 - want) / want).abs() < 3e-7, "exp(-{a}) = {got}, want {want}");
+        }
+        for k in 0..=1000 {
+            let u = k as f32 / 1000.0;
+            let (got, want) = (log1p_unit(u), (u as f64).ln_1p());
+            assert!((got as f64 - want).abs() < 2e-7, "log1p({u}) = {got}, want {want}");
+        }
     }
 }

@@ -60,7 +60,7 @@ impl HashGrid {
         let mut frac = [0f32; 3];
         for a in 0..3 {
             let x = ((p[a] + 1.0) * 0.5).clamp(0.0, 1.0) * res as f32;
-            let c = (x.floor() as u32).min(res - 1);
+            let c = (x as u32).min(res - 1); // x >= 0: truncation is floor
             cell[a] = c;
             frac[a] = x - c as f32;
         }
@@ -87,24 +87,26 @@ impl HashGrid {
     }
 
     /// Encode `points` (n x 3) into `out` (n x outputs); level `l` is scaled by `level_weight[l]`.
+    /// Level by level, so that one level's table stays in cache.
     pub fn encode(&self, params: &[f32], points: &[f32], level_weight: &[f32], out: &mut [f32]) {
         let width = self.outputs();
-        for (p, o) in points.chunks_exact(3).zip(out.chunks_exact_mut(width)) {
-            for level in 0..self.levels {
-                let lw = level_weight[level];
+        for (level, &lw) in level_weight.iter().enumerate().take(self.levels) {
+            for (p, o) in points.chunks_exact(3).zip(out.chunks_exact_mut(width)) {
+                let o = &mut o[level * FEATURES..(level + 1) * FEATURES];
                 if lw == 0.0 {
-                    o[level * FEATURES..(level + 1) * FEATURES].fill(0.0);
+                    o.fill(0.0);
                     continue;
                 }
                 let corners = self.corners(level, [p[0], p[1], p[2]]);
                 let mut f = [0f32; FEATURES];
                 for k in 0..8 {
-                    for (j, fj) in f.iter_mut().enumerate() {
-                        *fj += corners.weight[k] * params[corners.index[k] + j];
+                    let entry = &params[corners.index[k]..corners.index[k] + FEATURES];
+                    for j in 0..FEATURES {
+                        f[j] += corners.weight[k] * entry[j];
                     }
                 }
                 for j in 0..FEATURES {
-                    o[level * FEATURES + j] = f[j] * lw;
+                    o[j] = f[j] * lw;
                 }
             }
         }
@@ -113,16 +115,17 @@ impl HashGrid {
     /// Scatter `d_out` (n x outputs) into the table gradients.
     pub fn backward(&self, points: &[f32], level_weight: &[f32], d_out: &[f32], grad: &mut [f32]) {
         let width = self.outputs();
-        for (p, d) in points.chunks_exact(3).zip(d_out.chunks_exact(width)) {
-            for level in 0..self.levels {
-                let lw = level_weight[level];
-                if lw == 0.0 {
-                    continue;
-                }
+        for (level, &lw) in level_weight.iter().enumerate().take(self.levels) {
+            if lw == 0.0 {
+                continue;
+            }
+            for (p, d) in points.chunks_exact(3).zip(d_out.chunks_exact(width)) {
+                let d = &d[level * FEATURES..(level + 1) * FEATURES];
                 let corners = self.corners(level, [p[0], p[1], p[2]]);
                 for k in 0..8 {
+                    let entry = &mut grad[corners.index[k]..corners.index[k] + FEATURES];
                     for j in 0..FEATURES {
-                        grad[corners.index[k] + j] += corners.weight[k] * lw * d[level * FEATURES + j];
+                        entry[j] += corners.weight[k] * lw * d[j];
                     }
                 }
             }
