@@ -28,7 +28,8 @@ fn s(p: &Path) -> &str {
 fn demo_simulates_captures_and_builds_a_valid_dataset() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("demo");
-    let stdout = ok(&["demo", "-o", s(&out), "--res", "192x160", "--spp", "8", "--recon-iters", "20", "--mesh-res", "48"]);
+    let stdout =
+        ok(&["demo", "-o", s(&out), "--res", "192x160", "--spp", "8", "--recon-iters", "20", "--mesh-res", "48"]);
     assert!(stdout.contains("AoP error median"), "{stdout}");
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();

@@ -19,8 +19,9 @@ pub struct Frame {
 impl Frame {
     /// The frame of `scale_mat`, which must be an invertible similarity.
     pub fn new(to_world: Matrix4<f64>) -> Result<Self> {
-        let from_world =
-            to_world.try_inverse().ok_or_else(|| Error::invalid("scale_mat is singular: the unit sphere cannot be mapped"))?;
+        let from_world = to_world
+            .try_inverse()
+            .ok_or_else(|| Error::invalid("scale_mat is singular: the unit sphere cannot be mapped"))?;
         let linear = from_world.fixed_view::<3, 3>(0, 0).into_owned();
         let scale = linear.determinant().cbrt();
         if scale.abs() < 1e-12 {
@@ -55,7 +56,12 @@ impl Frame {
     pub fn pixel_ray(&self, camera: &Camera, i: u32, j: u32) -> Option<Ray> {
         let ray = camera.pixel_ray(i, j);
         let (fx, fy) = camera.stokes_frame(&ray.direction);
-        Ray::clipped(self.point_from_world(&ray.origin), self.dir_from_world(&ray.direction), self.dir_from_world(&fx), self.dir_from_world(&fy))
+        Ray::clipped(
+            self.point_from_world(&ray.origin),
+            self.dir_from_world(&ray.direction),
+            self.dir_from_world(&fx),
+            self.dir_from_world(&fy),
+        )
     }
 }
 
@@ -103,7 +109,9 @@ impl TrainingSet {
         let frame = Frame::new(scene.normalization)?;
         let mut views = Vec::new();
         for view in scene.views.iter().filter(|v| v.split == Split::Train) {
-            let missing = |what: &str| Error::invalid(format!("view {}: no {what}; reconstruction needs Stokes and masks", view.name));
+            let missing = |what: &str| {
+                Error::invalid(format!("view {}: no {what}; reconstruction needs Stokes and masks", view.name))
+            };
             let stokes = view.stokes.as_ref().ok_or_else(|| missing("Stokes images"))?;
             let mask = view.mask.as_ref().ok_or_else(|| missing("mask"))?;
             let (w, h) = stokes.s0.size();
@@ -111,11 +119,17 @@ impl TrainingSet {
                 return Err(Error::invalid(format!("view {}: Stokes must be RGB", view.name)));
             }
             if (w, h) != (view.camera.width as usize, view.camera.height as usize) {
-                return Err(Error::invalid(format!("view {}: images are {w}x{h} but the camera is {}x{}", view.name, view.camera.width, view.camera.height)));
+                return Err(Error::invalid(format!(
+                    "view {}: images are {w}x{h} but the camera is {}x{}",
+                    view.name, view.camera.width, view.camera.height
+                )));
             }
             mask.check_same_size(&stokes.s0, "mask")?;
             if let Some((x, y, c)) = [&stokes.s0, &stokes.s1, &stokes.s2].iter().find_map(|s| s.first_non_finite()) {
-                return Err(Error::invalid(format!("view {}: non-finite Stokes value at pixel ({x}, {y}), channel {c}", view.name)));
+                return Err(Error::invalid(format!(
+                    "view {}: non-finite Stokes value at pixel ({x}, {y}), channel {c}",
+                    view.name
+                )));
             }
             let aop = match &view.aop {
                 Some(a) => a.data().to_vec(),
@@ -142,7 +156,9 @@ impl TrainingSet {
         }
         let mut s0: Vec<f32> = views
             .iter()
-            .flat_map(|v| v.mask.iter().enumerate().filter(|(_, &m)| m).flat_map(|(k, _)| v.stokes[9 * k..9 * k + 3].to_vec()))
+            .flat_map(|v| {
+                v.mask.iter().enumerate().filter(|(_, &m)| m).flat_map(|(k, _)| v.stokes[9 * k..9 * k + 3].to_vec())
+            })
             .collect();
         if s0.is_empty() {
             return Err(Error::invalid("every training mask is empty"));

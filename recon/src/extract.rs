@@ -12,7 +12,8 @@ use std::collections::HashMap;
 
 /// The six tetrahedra of a cube (corner k at offset (k & 1, k >> 1 & 1, k >> 2 & 1)), all
 /// sharing the diagonal 0-7.
-const TETRAHEDRA: [[usize; 4]; 6] = [[0, 1, 3, 7], [0, 3, 2, 7], [0, 2, 6, 7], [0, 6, 4, 7], [0, 4, 5, 7], [0, 5, 1, 7]];
+const TETRAHEDRA: [[usize; 4]; 6] =
+    [[0, 1, 3, 7], [0, 3, 2, 7], [0, 2, 6, 7], [0, 6, 4, 7], [0, 4, 5, 7], [0, 5, 1, 7]];
 
 /// SDF samples on an `(n + 1)^3` grid over `[-1, 1]^3`, x fastest. Points outside the unit
 /// sphere are not evaluated (set to +1).
@@ -67,7 +68,8 @@ pub fn marching_tetrahedra(values: &[f32], n: usize, frame: &Frame) -> Mesh {
     for z in 0..n {
         for y in 0..n {
             for x in 0..n {
-                let corner: [usize; 8] = std::array::from_fn(|k| index(x + (k & 1), y + (k >> 1 & 1), z + (k >> 2 & 1)));
+                let corner: [usize; 8] =
+                    std::array::from_fn(|k| index(x + (k & 1), y + (k >> 1 & 1), z + (k >> 2 & 1)));
                 let inside = corner.iter().filter(|&&c| values[c] < 0.0).count();
                 if inside == 0 || inside == 8 {
                     continue;
@@ -102,7 +104,11 @@ pub fn marching_tetrahedra(values: &[f32], n: usize, frame: &Frame) -> Mesh {
                         let [a, b, c] = t.map(|(u, v)| mean(&[u, v]));
                         let e1 = [0, 1, 2].map(|k| b[k] - a[k]);
                         let e2 = [0, 1, 2].map(|k| c[k] - a[k]);
-                        let nrm = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]];
+                        let nrm = [
+                            e1[1] * e2[2] - e1[2] * e2[1],
+                            e1[2] * e2[0] - e1[0] * e2[2],
+                            e1[0] * e2[1] - e1[1] * e2[0],
+                        ];
                         if nrm[0] * out_dir[0] + nrm[1] * out_dir[1] + nrm[2] * out_dir[2] < 0.0 {
                             t.swap(1, 2);
                         }
@@ -164,7 +170,9 @@ mod tests {
             .iter()
             .map(|f| {
                 let [a, b, c] = f.map(|i| mesh.positions[i as usize]);
-                (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])) / 6.0
+                (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                    + a[2] * (b[0] * c[1] - b[1] * c[0]))
+                    / 6.0
             })
             .sum();
         let want = 4.0 / 3.0 * std::f32::consts::PI * 1.2f32.powi(3);

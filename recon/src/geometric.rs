@@ -56,7 +56,14 @@ const MAX_STEPS: usize = 48;
 /// For each surface point (unit frame) with its outward normal, the tangents of every training
 /// view that sees it (in front of the camera, inside the image and the view's mask, facing the
 /// camera and not occluded by the SDF).
-pub fn tangents(set: &TrainingSet, model: &Model, params: &[f32], level_weight: &[f32], points: &[[f32; 3]], normals: &[[f32; 3]]) -> Vec<Vec<Tangents>> {
+pub fn tangents(
+    set: &TrainingSet,
+    model: &Model,
+    params: &[f32],
+    level_weight: &[f32],
+    points: &[[f32; 3]],
+    normals: &[[f32; 3]],
+) -> Vec<Vec<Tangents>> {
     struct Query {
         point: usize,
         origin: [f32; 3],
@@ -89,7 +96,13 @@ pub fn tangents(set: &TrainingSet, model: &Model, params: &[f32], level_weight: 
             let e = [0, 1, 2].map(|a| c * fx[a] + s * fy[a]);
             let b = dot(x, to_camera);
             let exit = -b + (b * b - dot(x, x) + 1.0).max(0.0).sqrt();
-            queries.push(Query { point: pi, origin: x, dir: to_camera, exit, tangents: Tangents { t: cross(d, e), t_hat: e } });
+            queries.push(Query {
+                point: pi,
+                origin: x,
+                dir: to_camera,
+                exit,
+                tangents: Tangents { t: cross(d, e), t_hat: e },
+            });
         }
     }
     // Batched sphere tracing towards each camera.
@@ -100,7 +113,10 @@ pub fn tangents(set: &TrainingSet, model: &Model, params: &[f32], level_weight: 
         if active.is_empty() {
             break;
         }
-        let pts: Vec<f32> = active.iter().flat_map(|&q| [0, 1, 2].map(|k| queries[q].origin[k] + depth[q] * queries[q].dir[k])).collect();
+        let pts: Vec<f32> = active
+            .iter()
+            .flat_map(|&q| [0, 1, 2].map(|k| queries[q].origin[k] + depth[q] * queries[q].dir[k]))
+            .collect();
         let sdf = model.field.sdf(params, &pts, level_weight);
         let mut next = Vec::with_capacity(active.len());
         for (&q, &s) in active.iter().zip(&sdf) {

@@ -120,7 +120,7 @@ impl Field {
     /// The hash grid's finest active resolution under `level_weight` (None without a grid).
     pub fn finest_active(&self, level_weight: &[f32]) -> Option<u32> {
         let g = self.grid.as_ref()?;
-        g.resolutions().iter().zip(level_weight).filter(|(_, &w)| w > 0.0).map(|(&r, _)| r).last()
+        g.resolutions().iter().zip(level_weight).rev().find(|(_, &w)| w > 0.0).map(|(&r, _)| r)
     }
 
     fn encode(&self, params: &[f32], points: &[f32], level_weight: &[f32]) -> Vec<f32> {
@@ -131,7 +131,9 @@ impl Field {
             Some(g) => {
                 let mut enc = vec![0f32; n * g.outputs()];
                 g.encode(params, points, level_weight, &mut enc);
-                for ((o, p), e) in out.chunks_exact_mut(width).zip(points.chunks_exact(3)).zip(enc.chunks_exact(g.outputs())) {
+                for ((o, p), e) in
+                    out.chunks_exact_mut(width).zip(points.chunks_exact(3)).zip(enc.chunks_exact(g.outputs()))
+                {
                     o[..3].copy_from_slice(p);
                     o[3..].copy_from_slice(e);
                 }
@@ -247,7 +249,8 @@ impl Radiance {
             input.extend_from_slice(&s.normals[3 * i..3 * i + 3]);
             input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
         }
-        let diffuse_rgb: Vec<f32> = self.diffuse.forward(params, &input, n, &mut cache.diffuse).iter().map(|&x| sigmoid(x)).collect();
+        let diffuse_rgb: Vec<f32> =
+            self.diffuse.forward(params, &input, n, &mut cache.diffuse).iter().map(|&x| sigmoid(x)).collect();
         cache.diffuse_only = diffuse_only;
         let mut specular_rgb = vec![0f32; 3 * n];
         if !diffuse_only {
@@ -270,7 +273,8 @@ impl Radiance {
                 input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
                 cache.ide_jacobian.push(jac);
             }
-            specular_rgb = self.specular.forward(params, &input, n, &mut cache.specular).iter().map(|&x| sigmoid(x)).collect();
+            specular_rgb =
+                self.specular.forward(params, &input, n, &mut cache.specular).iter().map(|&x| sigmoid(x)).collect();
         }
         let mut stokes = vec![0f32; STOKES * n];
         for i in 0..n {
@@ -372,7 +376,10 @@ impl Radiance {
             let d_in = self.roughness.backward(params, &cache.roughness, &d_rough_raw, grad);
             let width = 3 + f;
             for i in 0..n {
-                d_features[f * i..f * (i + 1)].iter_mut().zip(&d_in[width * i + 3..width * (i + 1)]).for_each(|(a, b)| *a += b);
+                d_features[f * i..f * (i + 1)]
+                    .iter_mut()
+                    .zip(&d_in[width * i + 3..width * (i + 1)])
+                    .for_each(|(a, b)| *a += b);
             }
         }
         for i in 0..n {

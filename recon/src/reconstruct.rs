@@ -83,7 +83,12 @@ pub const MESH: &str = "mesh.ply";
 
 /// Train on `scene` into `out`, calling `on_step` after every iteration, then write the results
 /// (unless `stop_after` ended the session early: then the returned trainer has not finished).
-pub fn reconstruct(scene: &Scene, out: &Path, options: &Options, mut on_step: impl FnMut(&StepReport, &Trainer)) -> Result<Trainer> {
+pub fn reconstruct(
+    scene: &Scene,
+    out: &Path,
+    options: &Options,
+    mut on_step: impl FnMut(&StepReport, &Trainer),
+) -> Result<Trainer> {
     if options.photometric == options.geometric && !options.photometric {
         return Err(Error::invalid("both cues are switched off: nothing to train"));
     }
@@ -95,7 +100,10 @@ pub fn reconstruct(scene: &Scene, out: &Path, options: &Options, mut on_step: im
     let mut trainer = if options.resume && checkpoint.exists() {
         let t = Trainer::load_checkpoint(&checkpoint, set)?;
         if t.config != config {
-            return Err(Error::format(&checkpoint, "was written with other settings (preset, iterations or switches); resume with the same ones"));
+            return Err(Error::format(
+                &checkpoint,
+                "was written with other settings (preset, iterations or switches); resume with the same ones",
+            ));
         }
         t
     } else {
@@ -103,7 +111,9 @@ pub fn reconstruct(scene: &Scene, out: &Path, options: &Options, mut on_step: im
     };
     // The log keeps exactly the iterations the checkpoint has seen.
     let kept: String = match std::fs::read_to_string(&log_path) {
-        Ok(text) if trainer.iteration > 0 => text.lines().take(trainer.iteration as usize).map(|l| format!("{l}\n")).collect(),
+        Ok(text) if trainer.iteration > 0 => {
+            text.lines().take(trainer.iteration as usize).map(|l| format!("{l}\n")).collect()
+        }
         _ => String::new(),
     };
     write_bytes_atomically(&log_path, kept.as_bytes())?;
@@ -119,7 +129,8 @@ pub fn reconstruct(scene: &Scene, out: &Path, options: &Options, mut on_step: im
         let report = trainer.step();
         let line = serde_json::to_string(&report).map_err(|e| Error::invalid(e.to_string()))?;
         writeln!(log, "{line}").map_err(|e| Error::io(&log_path, e))?;
-        if trainer.iteration % options.checkpoint_every == 0 || trainer.iteration == trainer.config.iterations {
+        if trainer.iteration.is_multiple_of(options.checkpoint_every) || trainer.iteration == trainer.config.iterations
+        {
             log.sync_data().map_err(|e| Error::io(&log_path, e))?;
             trainer.save_checkpoint(&checkpoint)?;
         }
@@ -135,17 +146,18 @@ pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, mesh_resoluti
     let (model, params) = (&trainer.model, &trainer.params);
     let mesh = extract_mesh(model, params, &lw, mesh_resolution, &trainer.set.frame);
     if mesh.faces.is_empty() {
-        return Err(Error::invalid("the trained SDF has no zero crossing inside the unit sphere: no surface to extract"));
+        return Err(Error::invalid(
+            "the trained SDF has no zero crossing inside the unit sphere: no surface to extract",
+        ));
     }
     mesh.write(&out.join(MESH))?;
     let (normals_dir, stokes_dir) = (out.join("normals"), out.join("stokes"));
     for d in [&normals_dir, &stokes_dir] {
         std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
     }
-    let fd = trainer.fd_step(&lw);
     let mut tiles = Vec::new();
     for view in &scene.views {
-        let r = render_view(model, params, &lw, fd, trainer.config.sampling, &trainer.set.frame, &view.camera, trainer.set.stokes_scale);
+        let r = render_view(trainer, &view.camera);
         exr::write_exr(&normals_dir.join(format!("{}.exr", view.name)), &r.normals, &["N.X", "N.Y", "N.Z"])?;
         png::write_png_u8(&normals_dir.join(format!("{}.png", view.name)), &normal_picture(&r.normals))?;
         if view.split != Split::Train {

@@ -70,17 +70,30 @@ impl TrainConfig {
         let model = ModelConfig::preset(preset);
         let levels = model.grid.map_or(0, |g| g.0);
         let start_levels = levels.min(4);
-        let anneal_every = if levels > start_levels { (iterations / 2 / (levels - start_levels) as u32).max(1) } else { 1 };
+        let anneal_every =
+            if levels > start_levels { (iterations / 2 / (levels - start_levels) as u32).max(1) } else { 1 };
         let (batch_rays, sampling, adam) = match preset {
             Preset::Paper => (
                 512,
                 Sampling { coarse: 64, fine: 64, steps: 4 },
-                AdamConfig { lr_network: 5e-4, lr_grid: 0.0, lr_variance: 5e-4, warmup: 5000.min(iterations / 20), final_fraction: 0.05 },
+                AdamConfig {
+                    lr_network: 5e-4,
+                    lr_grid: 0.0,
+                    lr_variance: 5e-4,
+                    warmup: 5000.min(iterations / 20),
+                    final_fraction: 0.05,
+                },
             ),
             Preset::Fast => (
                 512,
                 Sampling { coarse: 32, fine: 32, steps: 4 },
-                AdamConfig { lr_network: 2e-3, lr_grid: 1e-2, lr_variance: 2e-3, warmup: (iterations / 20).min(500), final_fraction: 0.05 },
+                AdamConfig {
+                    lr_network: 2e-3,
+                    lr_grid: 1e-2,
+                    lr_variance: 2e-3,
+                    warmup: (iterations / 20).min(500),
+                    final_fraction: 0.05,
+                },
             ),
         };
         Self {
@@ -194,7 +207,8 @@ impl Trainer {
     pub fn step(&mut self) -> StepReport {
         let it = self.iteration;
         let mut rng = Rng::for_pixel(self.config.seed, it, 0);
-        let batch: Vec<(u32, u32)> = (0..self.config.batch_rays).map(|_| self.set.pool[rng.next_u32() as usize % self.set.pool.len()]).collect();
+        let batch: Vec<(u32, u32)> =
+            (0..self.config.batch_rays).map(|_| self.set.pool[rng.next_u32() as usize % self.set.pool.len()]).collect();
         let jitter: Vec<f32> = (0..batch.len()).map(|_| rng.next_f32()).collect();
         let masked_total = batch.iter().filter(|&&(v, p)| self.set.views[v as usize].mask[p as usize]).count().max(1);
         let level_weight = self.level_weight();
@@ -202,9 +216,14 @@ impl Trainer {
         let warm = self.warming_up();
         let use_geometric = self.config.geometric && !warm;
         let samples_per_ray = self.config.sampling.coarse + self.config.sampling.fine;
-        let norm = Norms { rays: batch.len() as f32, masked: masked_total as f32, samples: (batch.len() * samples_per_ray) as f32 };
+        let norm = Norms {
+            rays: batch.len() as f32,
+            masked: masked_total as f32,
+            samples: (batch.len() * samples_per_ray) as f32,
+        };
 
-        let chunks: Vec<(usize, usize)> = (0..batch.len()).step_by(CHUNK_RAYS).map(|s| (s, (s + CHUNK_RAYS).min(batch.len()))).collect();
+        let chunks: Vec<(usize, usize)> =
+            (0..batch.len()).step_by(CHUNK_RAYS).map(|s| (s, (s + CHUNK_RAYS).min(batch.len()))).collect();
         let results: Vec<(Vec<f32>, ChunkSums)> = chunks
             .par_iter()
             .map(|&(a, b)| self.chunk(&batch[a..b], &jitter[a..b], &level_weight, fd_step, warm, use_geometric, &norm))
@@ -242,7 +261,9 @@ impl Trainer {
                 let (params, adam, at) = self.safe.clone();
                 self.params = params;
                 self.adam = adam;
-                report.event = Some(format!("non-finite loss or gradient three times in a row: rolled back to the state of iteration {at}"));
+                report.event = Some(format!(
+                    "non-finite loss or gradient three times in a row: rolled back to the state of iteration {at}"
+                ));
                 self.bad_steps = 0;
             } else {
                 report.event = Some("non-finite loss or gradient: step skipped".into());
@@ -253,7 +274,7 @@ impl Trainer {
         self.bad_steps = 0;
         self.adam.step(&self.model.layout, &self.config.adam, &mut self.params, &grad, it, self.config.iterations);
         self.iteration += 1;
-        if self.iteration % 100 == 0 {
+        if self.iteration.is_multiple_of(100) {
             self.safe = (self.params.clone(), self.adam.clone(), self.iteration);
         }
         report
@@ -361,8 +382,9 @@ impl Trainer {
             return Err(bad("not an rmvp checkpoint"));
         }
         let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
-        let header: CheckpointHeader = serde_json::from_slice(bytes.get(16..16 + len).ok_or_else(|| bad("truncated header"))?)
-            .map_err(|e| bad(&format!("header: {e}")))?;
+        let header: CheckpointHeader =
+            serde_json::from_slice(bytes.get(16..16 + len).ok_or_else(|| bad("truncated header"))?)
+                .map_err(|e| bad(&format!("header: {e}")))?;
         let mut trainer = Self::new(header.config, set);
         let n = trainer.params.len();
         if header.parameters != n {
@@ -370,9 +392,14 @@ impl Trainer {
         }
         let body = &bytes[16 + len..];
         if body.len() != 12 * n {
-            return Err(bad(&format!("truncated: {} bytes of parameters and optimiser state, expected {}", body.len(), 12 * n)));
+            return Err(bad(&format!(
+                "truncated: {} bytes of parameters and optimiser state, expected {}",
+                body.len(),
+                12 * n
+            )));
         }
-        let floats: Vec<f32> = body.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))).collect();
+        let floats: Vec<f32> =
+            body.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))).collect();
         trainer.params = floats[..n].to_vec();
         trainer.adam.m = floats[n..2 * n].to_vec();
         trainer.adam.v = floats[2 * n..].to_vec();

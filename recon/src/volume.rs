@@ -60,7 +60,14 @@ fn sigmoid(x: f32) -> f32 {
 
 /// Sample depths for `rays`: coarse (shifted by `jitter[r]` in `[0, 1)` of a step) then NeuS's
 /// up-sampling on the SDF. Every ray gets `coarse + fine` sorted depths.
-pub fn sample_depths(model: &Model, params: &[f32], level_weight: &[f32], rays: &[Ray], sampling: Sampling, jitter: &[f32]) -> Vec<Vec<f32>> {
+pub fn sample_depths(
+    model: &Model,
+    params: &[f32],
+    level_weight: &[f32],
+    rays: &[Ray],
+    sampling: Sampling,
+    jitter: &[f32],
+) -> Vec<Vec<f32>> {
     let mut depths: Vec<Vec<f32>> = rays
         .iter()
         .zip(jitter)
@@ -86,8 +93,12 @@ pub fn sample_depths(model: &Model, params: &[f32], level_weight: &[f32], rays: 
         let pts: Vec<f32> = rays.iter().zip(&new).flat_map(|(r, ts)| ts.iter().flat_map(|&t| r.at(t))).collect();
         let new_sdf = split_like(&eval(pts), &new);
         for r in 0..rays.len() {
-            let mut merged: Vec<(f32, f32)> =
-                depths[r].iter().copied().zip(sdfs[r].iter().copied()).chain(new[r].iter().copied().zip(new_sdf[r].iter().copied())).collect();
+            let mut merged: Vec<(f32, f32)> = depths[r]
+                .iter()
+                .copied()
+                .zip(sdfs[r].iter().copied())
+                .chain(new[r].iter().copied().zip(new_sdf[r].iter().copied()))
+                .collect();
             merged.sort_by(|a, b| a.0.total_cmp(&b.0));
             depths[r] = merged.iter().map(|m| m.0).collect();
             sdfs[r] = merged.iter().map(|m| m.1).collect();
@@ -266,12 +277,20 @@ impl Forward {
             }
         }
         let mut shading_cache = ShadingCache::default();
-        let input = ShadingInput { points: &points, normals: &normals, features: &features, view: &view, frame_x: &frame_x, frame_y: &frame_y };
+        let input = ShadingInput {
+            points: &points,
+            normals: &normals,
+            features: &features,
+            view: &view,
+            frame_x: &frame_x,
+            frame_y: &frame_y,
+        };
         let stokes = model.radiance.shade(params, &input, diffuse_only, &mut shading_cache);
 
         let inv_s = model.inv_s(params);
         let sigma: Vec<f32> = sdf.iter().map(|&s| sigmoid(s * inv_s)).collect();
-        let (mut alpha_raw, mut alpha, mut transmittance, mut weights) = (vec![0f32; n], vec![0f32; n], vec![0f32; n], vec![0f32; n]);
+        let (mut alpha_raw, mut alpha, mut transmittance, mut weights) =
+            (vec![0f32; n], vec![0f32; n], vec![0f32; n], vec![0f32; n]);
         let mut outputs = Vec::with_capacity(rays.len());
         for &(start, count) in &spans {
             let mut trans = 1.0f32;
@@ -325,7 +344,15 @@ impl Forward {
 
     /// Backward pass: `ray_grads` per ray plus `d_gradients` (n x 3, e.g. from the Eikonal
     /// loss) on the SDF gradients; adds every parameter gradient into `grad`.
-    pub fn backward(&self, model: &Model, params: &[f32], level_weight: &[f32], ray_grads: &[RayGrad], d_gradients: &[f32], grad: &mut [f32]) {
+    pub fn backward(
+        &self,
+        model: &Model,
+        params: &[f32],
+        level_weight: &[f32],
+        ray_grads: &[RayGrad],
+        d_gradients: &[f32],
+        grad: &mut [f32],
+    ) {
         let n = self.depths.len();
         let mut d_stokes = vec![0f32; STOKES * n];
         let mut d_normals = vec![0f32; 3 * n];
@@ -380,7 +407,8 @@ impl Forward {
             frame_x: &self.frame_x,
             frame_y: &self.frame_y,
         };
-        let (dn_shading, d_features) = model.radiance.shade_backward(params, &input, &self.shading_cache, &d_stokes, grad);
+        let (dn_shading, d_features) =
+            model.radiance.shade_backward(params, &input, &self.shading_cache, &d_stokes, grad);
         let width = model.field.outputs();
         let mut d_out = vec![0f32; 7 * n * width];
         for i in 0..n {

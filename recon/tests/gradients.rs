@@ -1,5 +1,7 @@
 //! Every hand-written backward pass against central finite differences.
 
+#![allow(clippy::needless_range_loop)]
+
 use rmvp_recon::engine::encoding::{ide, IDE_WIDTH};
 use rmvp_recon::engine::{Activation, HashGrid, Init, Layout, Mlp, MlpCache};
 use rmvp_recon::model::{FieldCache, Model, ModelConfig, Preset, ShadingCache, ShadingInput, STOKES};
@@ -9,7 +11,15 @@ use rmvp_render::rng::Rng;
 
 /// Compare `analytic` with central differences of `loss` on `indices` of `params`; the
 /// relative error of the whole vector must stay under `tolerance`.
-fn check(name: &str, params: &[f32], analytic: &[f32], indices: &[usize], eps: f32, tolerance: f64, loss: impl Fn(&[f32]) -> f64) {
+fn check(
+    name: &str,
+    params: &[f32],
+    analytic: &[f32],
+    indices: &[usize],
+    eps: f32,
+    tolerance: f64,
+    loss: impl Fn(&[f32]) -> f64,
+) {
     let mut p = params.to_vec();
     let (mut diff, mut norm) = (0f64, 0f64);
     for &i in indices {
@@ -74,7 +84,9 @@ fn mlp_relu_and_geometric_init() {
     mlp.forward(&params, &x, rows, &mut cache);
     let mut grad = vec![0f32; params.len()];
     mlp.backward(&params, &cache, &w, &mut grad);
-    check("relu mlp", &params, &grad, &pick(params.len(), 300, 7), 1e-3, 2e-2, |p| weighted(&mlp.infer(p, &x, rows), &w));
+    check("relu mlp", &params, &grad, &pick(params.len(), 300, 7), 1e-3, 2e-2, |p| {
+        weighted(&mlp.infer(p, &x, rows), &w)
+    });
 
     // Geometric initialisation: the first output starts close to |x| - 0.5.
     let mut layout = Layout::default();
@@ -199,23 +211,46 @@ fn shading_networks_and_pbrdf() {
         let points = random(3 * n, 20, 0.5);
         let normals = unit(random(3 * n, 21, 1.0));
         let features = random(5 * n, 22, 1.0);
-        let view = unit(normals.chunks(3).zip(random(3 * n, 23, 0.6).chunks(3)).flat_map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]]).collect());
+        let view = unit(
+            normals
+                .chunks(3)
+                .zip(random(3 * n, 23, 0.6).chunks(3))
+                .flat_map(|(a, b)| [a[0] + b[0], a[1] + b[1], a[2] + b[2]])
+                .collect(),
+        );
         let frame_x = unit(random(3 * n, 24, 1.0));
-        let frame_y = unit(view.chunks(3).zip(frame_x.chunks(3)).flat_map(|(d, x)| [d[1] * x[2] - d[2] * x[1], d[2] * x[0] - d[0] * x[2], d[0] * x[1] - d[1] * x[0]]).collect());
+        let frame_y = unit(
+            view.chunks(3)
+                .zip(frame_x.chunks(3))
+                .flat_map(|(d, x)| [d[1] * x[2] - d[2] * x[1], d[2] * x[0] - d[0] * x[2], d[0] * x[1] - d[1] * x[0]])
+                .collect(),
+        );
         let w = random(STOKES * n, 25, 1.0);
         let run = |p: &[f32], normals: &[f32], features: &[f32]| {
-            let input = ShadingInput { points: &points, normals, features, view: &view, frame_x: &frame_x, frame_y: &frame_y };
+            let input =
+                ShadingInput { points: &points, normals, features, view: &view, frame_x: &frame_x, frame_y: &frame_y };
             weighted(&model.radiance.shade(p, &input, diffuse_only, &mut ShadingCache::default()), &w)
         };
         let mut cache = ShadingCache::default();
-        let input = ShadingInput { points: &points, normals: &normals, features: &features, view: &view, frame_x: &frame_x, frame_y: &frame_y };
+        let input = ShadingInput {
+            points: &points,
+            normals: &normals,
+            features: &features,
+            view: &view,
+            frame_x: &frame_x,
+            frame_y: &frame_y,
+        };
         model.radiance.shade(&params, &input, diffuse_only, &mut cache);
         let mut grad = vec![0f32; params.len()];
         let (dn, df) = model.radiance.shade_backward(&params, &input, &cache, &w, &mut grad);
         let network: Vec<usize> = (0..params.len()).filter(|&i| grad[i] != 0.0).collect();
         check("radiance parameters", &params, &grad, &network, 1e-3, 2e-2, |p| run(p, &normals, &features));
-        check("shading normals", &normals, &dn, &(0..3 * n).collect::<Vec<_>>(), 1e-3, 2e-2, |nn| run(&params, nn, &features));
-        check("shading features", &features, &df, &(0..5 * n).collect::<Vec<_>>(), 1e-3, 2e-2, |ff| run(&params, &normals, ff));
+        check("shading normals", &normals, &dn, &(0..3 * n).collect::<Vec<_>>(), 1e-3, 2e-2, |nn| {
+            run(&params, nn, &features)
+        });
+        check("shading features", &features, &df, &(0..5 * n).collect::<Vec<_>>(), 1e-3, 2e-2, |ff| {
+            run(&params, &normals, ff)
+        });
     }
 }
 

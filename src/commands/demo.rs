@@ -15,12 +15,12 @@
 use super::progress;
 use super::simulate::{self, simulate};
 use anyhow::{Context, Result};
+use rmvp_align::{normal_errors, surface_metrics, SurfaceOptions};
 use rmvp_capture::sensor::SensorModel;
 use rmvp_capture::{FrameProcessor, PixelFormat, RawFrame};
 use rmvp_dataset::io::{png, write_bytes_atomically};
 use rmvp_dataset::layout::{read_scene, write_scene, Layout};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, downsample, gray_ramp, preview, quantile};
-use rmvp_align::{normal_errors, surface_metrics, SurfaceOptions};
 use rmvp_dataset::{Image, Mesh, Scene, View};
 use rmvp_recon::reconstruct::{reconstruct, Options, MESH};
 use serde_json::json;

@@ -49,7 +49,15 @@ impl Adam {
     }
 
     /// One update of `params` by `grad` at `iteration` of `total`.
-    pub fn step(&mut self, layout: &Layout, config: &AdamConfig, params: &mut [f32], grad: &[f32], iteration: u32, total: u32) {
+    pub fn step(
+        &mut self,
+        layout: &Layout,
+        config: &AdamConfig,
+        params: &mut [f32],
+        grad: &[f32],
+        iteration: u32,
+        total: u32,
+    ) {
         self.steps += 1;
         let factor = Self::schedule(config, iteration, total);
         let c1 = 1.0 - BETA1.powi(self.steps as i32);
@@ -62,7 +70,8 @@ impl Adam {
             };
             let lr = lr * factor;
             let r = range.clone();
-            for (((p, &g), m), v) in params[r.clone()].iter_mut().zip(&grad[r.clone()]).zip(&mut self.m[r.clone()]).zip(&mut self.v[r])
+            for (((p, &g), m), v) in
+                params[r.clone()].iter_mut().zip(&grad[r.clone()]).zip(&mut self.m[r.clone()]).zip(&mut self.v[r])
             {
                 *m = BETA1 * *m + (1.0 - BETA1) * g;
                 *v = BETA2 * *v + (1.0 - BETA2) * g * g;

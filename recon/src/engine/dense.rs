@@ -20,7 +20,9 @@ impl Activation {
         match self {
             Activation::Relu => out.extend(x.iter().map(|&v| v.max(0.0))),
             // softplus(x) = max(x, 0) + log1p(exp(-|beta x|)) / beta, branch-free so it vectorises.
-            Activation::Softplus(beta) => out.extend(x.iter().map(|&v| v.max(0.0) + log1p_unit(exp_neg((beta * v).abs())) / beta)),
+            Activation::Softplus(beta) => {
+                out.extend(x.iter().map(|&v| v.max(0.0) + log1p_unit(exp_neg((beta * v).abs())) / beta))
+            }
         }
     }
 
@@ -46,7 +48,8 @@ pub fn exp_neg(a: f32) -> f32 {
     // Round to nearest by the 1.5 * 2^23 trick (no libm call without SSE4.1).
     let n = (x * std::f32::consts::LOG2_E + 12_582_912.0) - 12_582_912.0;
     let r = x - n * 0.693_145_75 - n * 1.428_606_8e-6;
-    let p = 1.0 + r * (1.0 + r * (0.5 + r * (0.166_666_67 + r * (0.041_666_41 + r * (0.008_333_452 + r * 0.001_394_973)))));
+    let p =
+        1.0 + r * (1.0 + r * (0.5 + r * (0.166_666_67 + r * (0.041_666_41 + r * (0.008_333_452 + r * 0.001_394_973)))));
     p * f32::from_bits(((n as i32 + 127) as u32) << 23)
 }
 
@@ -56,7 +59,8 @@ pub fn exp_neg(a: f32) -> f32 {
 pub fn log1p_unit(u: f32) -> f32 {
     let s = u / (2.0 + u);
     let s2 = s * s;
-    let series = 1.0 + s2 * (1.0 / 3.0 + s2 * (0.2 + s2 * (1.0 / 7.0 + s2 * (1.0 / 9.0 + s2 * (1.0 / 11.0 + s2 * (1.0 / 13.0))))));
+    let series = 1.0
+        + s2 * (1.0 / 3.0 + s2 * (0.2 + s2 * (1.0 / 7.0 + s2 * (1.0 / 9.0 + s2 * (1.0 / 11.0 + s2 * (1.0 / 13.0))))));
     2.0 * s * series
 }
 
@@ -311,7 +315,8 @@ fn gemm(m: usize, k: usize, n: usize, a: (&[f32], isize, isize), b: (&[f32], isi
     if m == 0 || n == 0 {
         return;
     }
-    let max_index = |rows: usize, cols: usize, rs: isize, cs: isize| (rows - 1) as isize * rs + (cols - 1) as isize * cs;
+    let max_index =
+        |rows: usize, cols: usize, rs: isize, cs: isize| (rows - 1) as isize * rs + (cols - 1) as isize * cs;
     if k > 0 {
         assert!(max_index(m, k, a.1, a.2) < a.0.len() as isize);
         assert!(max_index(k, n, b.1, b.2) < b.0.len() as isize);

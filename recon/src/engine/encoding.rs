@@ -58,6 +58,8 @@ impl std::ops::Sub for Dual {
     }
 }
 
+// The product rule: d(uv) = u dv + v du.
+#[allow(clippy::suspicious_arithmetic_impl)]
 impl std::ops::Mul for Dual {
     type Output = Self;
     fn mul(self, o: Self) -> Self {

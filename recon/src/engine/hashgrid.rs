@@ -77,7 +77,8 @@ impl HashGrid {
             let slot = if dense {
                 c[0] + side * (c[1] + side * c[2])
             } else {
-                let h = (c[0] as u32) ^ (c[1] as u32).wrapping_mul(2_654_435_761) ^ (c[2] as u32).wrapping_mul(805_459_861);
+                let h =
+                    (c[0] as u32) ^ (c[1] as u32).wrapping_mul(2_654_435_761) ^ (c[2] as u32).wrapping_mul(805_459_861);
                 h as usize & (self.table - 1)
             };
             out.index[k] = base + slot * FEATURES;
