@@ -128,9 +128,36 @@ pub fn marching_tetrahedra(values: &[f32], n: usize, frame: &Frame) -> Mesh {
     Mesh { positions, normals: None, faces, vertex_properties: Vec::new() }
 }
 
-/// The model's surface as a world-frame mesh, from an `n^3` grid.
-pub fn extract_mesh(model: &Model, params: &[f32], level_weight: &[f32], n: usize, frame: &Frame) -> Mesh {
-    marching_tetrahedra(&sdf_grid(model, params, level_weight, n), n, frame)
+/// The model's surface as a world-frame mesh, from an `n^3` grid, with vertex normals from the
+/// SDF's gradient (central differences of step `fd_step`, as in training).
+pub fn extract_mesh(model: &Model, params: &[f32], level_weight: &[f32], n: usize, frame: &Frame, fd_step: f32) -> Mesh {
+    let mut mesh = marching_tetrahedra(&sdf_grid(model, params, level_weight, n), n, frame);
+    let normals: Vec<[f32; 3]> = mesh
+        .positions
+        .par_chunks(4096)
+        .flat_map_iter(|chunk| {
+            let mut pts = Vec::with_capacity(chunk.len() * 18);
+            for p in chunk {
+                let u = frame.point_from_world(&nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+                for axis in 0..3 {
+                    for sign in [1.0, -1.0] {
+                        let mut q = u;
+                        q[axis] += sign * fd_step;
+                        pts.extend(q);
+                    }
+                }
+            }
+            let sdf = model.field.sdf(params, &pts, level_weight);
+            sdf.chunks_exact(6)
+                .map(|d| {
+                    let world = frame.dir_to_world([d[0] - d[1], d[2] - d[3], d[4] - d[5]]);
+                    [world.x as f32, world.y as f32, world.z as f32]
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    mesh.normals = Some(normals);
+    mesh
 }
 
 #[cfg(test)]

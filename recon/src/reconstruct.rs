@@ -144,7 +144,7 @@ pub fn reconstruct(
 pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, mesh_resolution: usize) -> Result<()> {
     let lw = trainer.level_weight();
     let (model, params) = (&trainer.model, &trainer.params);
-    let mesh = extract_mesh(model, params, &lw, mesh_resolution, &trainer.set.frame);
+    let mesh = extract_mesh(model, params, &lw, mesh_resolution, &trainer.set.frame, trainer.fd_step(&lw));
     if mesh.faces.is_empty() {
         return Err(Error::invalid(
             "the trained SDF has no zero crossing inside the unit sphere: no surface to extract",

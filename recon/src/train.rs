@@ -17,7 +17,8 @@ use rmvp_render::rng::Rng;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// Loss weights (official NeRSP: photometric 1, geometric 1, mask 1, Eikonal 0.1).
+/// Loss weights (official NeRSP: photometric 1, geometric 1, mask 1, Eikonal 0.1; curvature is
+/// ours, from Neuralangelo, 0 in the paper preset).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct LossWeights {
     /// L1 on S0, S1, S2.
@@ -28,6 +29,8 @@ pub struct LossWeights {
     pub mask: f32,
     /// Eikonal.
     pub eikonal: f32,
+    /// Mean absolute SDF Laplacian (Neuralangelo's curvature loss, against hash-grid noise).
+    pub curvature: f32,
 }
 
 /// Everything that defines a training run.
@@ -102,7 +105,13 @@ impl TrainConfig {
             batch_rays,
             sampling,
             adam,
-            weights: LossWeights { photometric: 1.0, geometric: 1.0, mask: 1.0, eikonal: 0.1 },
+            weights: LossWeights {
+                photometric: 1.0,
+                geometric: 1.0,
+                mask: 1.0,
+                eikonal: 0.1,
+                curvature: if preset == Preset::Fast { 5e-4 } else { 0.0 },
+            },
             photometric: true,
             geometric: true,
             diffuse_only: 1000.min(iterations / 10),
@@ -129,6 +138,8 @@ pub struct StepReport {
     pub mask: f64,
     /// Eikonal (unweighted).
     pub eikonal: f64,
+    /// Curvature (unweighted).
+    pub curvature: f64,
     /// NeuS sharpness.
     pub inv_s: f32,
     /// Rays rendered.
@@ -148,6 +159,7 @@ struct ChunkSums {
     geometric: f64,
     mask: f64,
     eikonal: f64,
+    curvature: f64,
     samples: usize,
 }
 
@@ -236,6 +248,7 @@ impl Trainer {
             sums.geometric += s.geometric;
             sums.mask += s.mask;
             sums.eikonal += s.eikonal;
+            sums.curvature += s.curvature;
             sums.samples += s.samples;
         }
         let w = &self.config.weights;
@@ -245,10 +258,12 @@ impl Trainer {
             geometric: sums.geometric,
             mask: sums.mask,
             eikonal: sums.eikonal,
+            curvature: sums.curvature,
             loss: w.photometric as f64 * sums.photometric
                 + w.geometric as f64 * sums.geometric
                 + w.mask as f64 * sums.mask
-                + w.eikonal as f64 * sums.eikonal,
+                + w.eikonal as f64 * sums.eikonal
+                + w.curvature as f64 * sums.curvature,
             inv_s: self.model.inv_s(&self.params),
             rays: batch.len(),
             samples: sums.samples,
@@ -346,8 +361,17 @@ impl Trainer {
                 d[k] = s * g[k];
             }
         }
+        // Curvature on every sample's finite-difference Laplacian.
+        let d_laplacians: Vec<f32> = fwd
+            .laplacians
+            .iter()
+            .map(|&l| {
+                sums.curvature += l.abs() as f64 / norm.samples as f64;
+                w.curvature * l.signum() / norm.samples
+            })
+            .collect();
         let mut grad = vec![0f32; self.params.len()];
-        fwd.backward(&self.model, &self.params, level_weight, &grads, &d_gradients, &mut grad);
+        fwd.backward(&self.model, &self.params, level_weight, &grads, &d_gradients, &d_laplacians, &mut grad);
         (grad, sums)
     }
 

@@ -194,6 +194,8 @@ pub struct Forward {
     pub sdf: Vec<f32>,
     /// Finite-difference SDF gradients (n x 3).
     pub gradients: Vec<f32>,
+    /// Finite-difference SDF Laplacians (mean curvature x 2 on an SDF), from the same 7 values.
+    pub laplacians: Vec<f32>,
     /// Unit normals (n x 3).
     pub normals: Vec<f32>,
     /// Per-sample Stokes (n x 9).
@@ -264,7 +266,10 @@ impl Forward {
         let features: Vec<f32> = (0..n).flat_map(|i| out[i * width + 1..(i + 1) * width].iter().copied()).collect();
         let mut gradients = vec![0f32; 3 * n];
         let mut normals = vec![0f32; 3 * n];
+        let mut laplacians = vec![0f32; n];
         for i in 0..n {
+            let neighbours: f32 = (1..7).map(|b| out[(b * n + i) * width]).sum();
+            laplacians[i] = (neighbours - 6.0 * sdf[i]) / (fd_step * fd_step);
             for axis in 0..3 {
                 let plus = out[((1 + 2 * axis) * n + i) * width];
                 let minus = out[((2 + 2 * axis) * n + i) * width];
@@ -323,6 +328,7 @@ impl Forward {
             depths: flat_depths,
             sdf,
             gradients,
+            laplacians,
             normals,
             stokes,
             alpha_raw,
@@ -342,8 +348,10 @@ impl Forward {
         }
     }
 
-    /// Backward pass: `ray_grads` per ray plus `d_gradients` (n x 3, e.g. from the Eikonal
-    /// loss) on the SDF gradients; adds every parameter gradient into `grad`.
+    /// Backward pass: `ray_grads` per ray, `d_gradients` (n x 3, e.g. from the Eikonal loss) on
+    /// the SDF gradients and `d_laplacians` (n, the curvature loss) on the Laplacians; adds every
+    /// parameter gradient into `grad`.
+    #[allow(clippy::too_many_arguments)]
     pub fn backward(
         &self,
         model: &Model,
@@ -351,6 +359,7 @@ impl Forward {
         level_weight: &[f32],
         ray_grads: &[RayGrad],
         d_gradients: &[f32],
+        d_laplacians: &[f32],
         grad: &mut [f32],
     ) {
         let n = self.depths.len();
@@ -411,8 +420,12 @@ impl Forward {
             model.radiance.shade_backward(params, &input, &self.shading_cache, &d_stokes, grad);
         let width = model.field.outputs();
         let mut d_out = vec![0f32; 7 * n * width];
+        let h2 = self.step * self.step;
         for i in 0..n {
-            d_out[i * width] = d_sdf[i];
+            d_out[i * width] = d_sdf[i] - 6.0 * d_laplacians[i] / h2;
+            for b in 1..7 {
+                d_out[(b * n + i) * width] += d_laplacians[i] / h2;
+            }
             d_out[i * width + 1..(i + 1) * width].copy_from_slice(&d_features[(width - 1) * i..(width - 1) * (i + 1)]);
             let nv = [self.normals[3 * i], self.normals[3 * i + 1], self.normals[3 * i + 2]];
             let dn = [0, 1, 2].map(|k| d_normals[3 * i + k] + dn_shading[3 * i + k]);

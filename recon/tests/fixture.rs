@@ -20,7 +20,8 @@ fn train(photometric: bool, geometric: bool) -> f64 {
     while trainer.iteration < trainer.config.iterations {
         trainer.step();
     }
-    let mesh = extract_mesh(&trainer.model, &trainer.params, &trainer.level_weight(), 128, &trainer.set.frame);
+    let lw = trainer.level_weight();
+    let mesh = extract_mesh(&trainer.model, &trainer.params, &lw, 128, &trainer.set.frame, trainer.fd_step(&lw));
     let report = normal_errors(&mesh, &scene).unwrap();
     println!("photometric {photometric} geometric {geometric}: normal MAE {:.2} deg", report.mean_mae_deg);
     report.mean_mae_deg

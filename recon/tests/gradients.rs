@@ -285,18 +285,19 @@ fn volume_rendering_end_to_end() {
         .collect();
     let n: usize = depths.iter().map(|d| d.len()).sum();
     let d_gradients = random(3 * n, 40, 0.5);
+    let d_laplacians = random(n, 42, 1e-3);
     let loss = |p: &[f32]| {
         let f = Forward::run(&model, p, &lw, &rays, &depths, 0.02, false);
         let mut l = 0f64;
         for (o, g) in f.rays.iter().zip(&grads) {
             l += weighted(&o.stokes, &g.stokes) + (o.opacity * g.opacity) as f64 + weighted(&o.normal, &g.normal);
         }
-        l + weighted(&f.gradients, &d_gradients)
+        l + weighted(&f.gradients, &d_gradients) + weighted(&f.laplacians, &d_laplacians)
     };
     let f = Forward::run(&model, &params, &lw, &rays, &depths, 0.02, false);
     assert!(f.rays.iter().any(|o| o.opacity > 0.1), "rays should cross the initial sphere");
     let mut grad = vec![0f32; params.len()];
-    f.backward(&model, &params, &lw, &grads, &d_gradients, &mut grad);
+    f.backward(&model, &params, &lw, &grads, &d_gradients, &d_laplacians, &mut grad);
     let nonzero: Vec<usize> = (0..params.len()).filter(|&i| grad[i] != 0.0).collect();
     let mut indices = pick(nonzero.len(), 400, 41).into_iter().map(|k| nonzero[k]).collect::<Vec<_>>();
     indices.push(model.variance);

@@ -47,7 +47,8 @@ fn analytic_sphere_converges_to_the_sphere() {
         let r = trainer.step();
         assert!(r.event.is_none(), "{r:?}");
     }
-    let mesh = extract_mesh(&trainer.model, &trainer.params, &trainer.level_weight(), 64, &trainer.set.frame);
+    let lw = trainer.level_weight();
+    let mesh = extract_mesh(&trainer.model, &trainer.params, &lw, 64, &trainer.set.frame, trainer.fd_step(&lw));
     let radii: Vec<f32> = mesh.positions.iter().map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()).collect();
     let mean_error = radii.iter().map(|r| (r - RADIUS).abs()).sum::<f32>() / radii.len() as f32;
     let worst = radii.iter().map(|r| (r - RADIUS).abs()).fold(0.0, f32::max);
