@@ -130,7 +130,14 @@ pub fn marching_tetrahedra(values: &[f32], n: usize, frame: &Frame) -> Mesh {
 
 /// The model's surface as a world-frame mesh, from an `n^3` grid, with vertex normals from the
 /// SDF's gradient (central differences of step `fd_step`, as in training).
-pub fn extract_mesh(model: &Model, params: &[f32], level_weight: &[f32], n: usize, frame: &Frame, fd_step: f32) -> Mesh {
+pub fn extract_mesh(
+    model: &Model,
+    params: &[f32],
+    level_weight: &[f32],
+    n: usize,
+    frame: &Frame,
+    fd_step: f32,
+) -> Mesh {
     let mut mesh = marching_tetrahedra(&sdf_grid(model, params, level_weight, n), n, frame);
     let normals: Vec<[f32; 3]> = mesh
         .positions

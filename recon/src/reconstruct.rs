@@ -60,7 +60,7 @@ impl Options {
     /// The training configuration these options give.
     pub fn config(&self) -> TrainConfig {
         let iterations = self.iterations.unwrap_or(match self.preset {
-            Preset::Fast => 3000,
+            Preset::Fast => 1000,
             Preset::Paper => 100_000,
         });
         let mut config = TrainConfig::preset(self.preset, iterations);

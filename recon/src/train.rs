@@ -88,7 +88,7 @@ impl TrainConfig {
                 },
             ),
             Preset::Fast => (
-                512,
+                256,
                 Sampling { coarse: 32, fine: 32, steps: 4 },
                 AdamConfig {
                     lr_network: 2e-3,

@@ -40,7 +40,7 @@ pub struct Args {
     #[arg(long, default_value_t = 16)]
     spp: u32,
     /// Training iterations of the reconstruction (fast preset).
-    #[arg(long, default_value_t = 2000)]
+    #[arg(long, default_value_t = 1000)]
     recon_iters: u32,
     /// Marching grid cells per axis of the reconstructed mesh.
     #[arg(long, default_value_t = 192)]

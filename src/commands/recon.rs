@@ -19,7 +19,7 @@ pub struct Args {
     /// Model preset: `fast` (hash grid, minutes on a CPU) or `paper` (NeRSP's 8x256 MLP).
     #[arg(long, default_value = "fast", value_parser = parse_preset)]
     preset: Preset,
-    /// Training iterations (default: 3000 fast, 100000 paper).
+    /// Training iterations (default: 1000 fast, about 3 minutes on 2 cores; 100000 paper).
     #[arg(long)]
     iters: Option<u32>,
     /// Photometric cue only (PANDORA-like ablation).
@@ -34,7 +34,7 @@ pub struct Args {
     /// Marching grid cells per axis for the mesh.
     #[arg(long, default_value_t = 256)]
     mesh_res: usize,
-    /// Rays per iteration (default: 512).
+    /// Rays per iteration (default: 256 fast, 512 paper).
     #[arg(long)]
     batch: Option<usize>,
     /// Iterations between checkpoints.
