@@ -8,6 +8,7 @@ pub mod data;
 pub mod engine;
 pub mod extract;
 pub mod geometric;
+pub mod losses;
 pub mod model;
 pub mod output;
 pub mod pbrdf;

@@ -8,6 +8,7 @@
 use crate::data::TrainingSet;
 use crate::engine::{Adam, AdamConfig};
 use crate::geometric::{tangent_loss, tangents};
+use crate::losses::{curvature, eikonal, l1, mask_bce};
 use crate::model::{Model, ModelConfig, Preset, STOKES};
 use crate::volume::{sample_depths, Forward, RayGrad, Sampling};
 use rayon::prelude::*;
@@ -317,13 +318,9 @@ impl Trainer {
         for (r, (&(v, p), out)) in batch.iter().zip(&fwd.rays).enumerate() {
             let view = &set.views[v as usize];
             let inside = view.mask[p as usize];
-            // Mask BCE on the accumulated opacity.
-            let a = out.opacity.clamp(1e-3, 1.0 - 1e-3);
-            let m = inside as u8 as f32;
-            sums.mask += -(m * a.ln() + (1.0 - m) * (1.0 - a).ln()) as f64 / norm.rays as f64;
-            if (1e-3..=1.0 - 1e-3).contains(&out.opacity) {
-                grads[r].opacity = w.mask * -(m / a - (1.0 - m) / (1.0 - a)) / norm.rays;
-            }
+            let (loss, d) = mask_bce(out.opacity, inside);
+            sums.mask += loss as f64 / norm.rays as f64;
+            grads[r].opacity = w.mask * d / norm.rays;
             if !inside {
                 continue;
             }
@@ -331,9 +328,10 @@ impl Trainer {
                 let target = &view.stokes[STOKES * p as usize..STOKES * (p as usize + 1)];
                 let used = if warm { 3 } else { STOKES };
                 for k in 0..used {
-                    let diff = out.stokes[k] - target[k];
-                    sums.photometric += diff.abs() as f64 / 3.0 / norm.masked as f64;
-                    grads[r].stokes[k] = w.photometric * diff.signum() / 3.0 / norm.masked;
+                    // Mean over the colour channels, summed over S0, S1, S2.
+                    let (loss, d) = l1(out.stokes[k], target[k]);
+                    sums.photometric += loss as f64 / 3.0 / norm.masked as f64;
+                    grads[r].stokes[k] = w.photometric * d / 3.0 / norm.masked;
                 }
             }
             if use_geometric && out.opacity > 0.5 {
@@ -354,11 +352,10 @@ impl Trainer {
         // Eikonal on every sample's finite-difference gradient.
         let mut d_gradients = vec![0f32; fwd.gradients.len()];
         for (g, d) in fwd.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)) {
-            let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt().max(1e-8);
-            sums.eikonal += ((len - 1.0) * (len - 1.0)) as f64 / norm.samples as f64;
-            let s = w.eikonal * 2.0 * (len - 1.0) / len / norm.samples;
+            let (loss, dg) = eikonal([g[0], g[1], g[2]]);
+            sums.eikonal += loss as f64 / norm.samples as f64;
             for k in 0..3 {
-                d[k] = s * g[k];
+                d[k] = w.eikonal * dg[k] / norm.samples;
             }
         }
         // Curvature on every sample's finite-difference Laplacian.
@@ -366,8 +363,9 @@ impl Trainer {
             .laplacians
             .iter()
             .map(|&l| {
-                sums.curvature += l.abs() as f64 / norm.samples as f64;
-                w.curvature * l.signum() / norm.samples
+                let (loss, d) = curvature(l);
+                sums.curvature += loss as f64 / norm.samples as f64;
+                w.curvature * d / norm.samples
             })
             .collect();
         let mut grad = vec![0f32; self.params.len()];

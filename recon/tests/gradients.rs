@@ -1,4 +1,5 @@
-//! Every hand-written backward pass against central finite differences.
+//! Every hand-written backward pass against central finite differences: engine, shading,
+//! volume rendering and each loss.
 
 #![allow(clippy::needless_range_loop)]
 
@@ -303,4 +304,44 @@ fn volume_rendering_end_to_end() {
     indices.push(model.variance);
     check("volume rendering", &params, &grad, &indices, 1e-3, 3e-2, loss);
     let _ = FieldCache::default();
+}
+
+#[test]
+fn losses() {
+    use rmvp_recon::geometric::{tangent_loss, Tangents};
+    use rmvp_recon::losses::{curvature, eikonal, l1, mask_bce};
+    let eps = 1e-3;
+    for (a, inside) in [(0.3f32, true), (0.7, false), (0.05, true)] {
+        let numeric = (mask_bce(a + eps, inside).0 - mask_bce(a - eps, inside).0) / (2.0 * eps);
+        assert!((numeric - mask_bce(a, inside).1).abs() < 1e-2 * numeric.abs().max(1.0), "BCE at {a}");
+    }
+    for (p, t) in [(0.4f32, 0.1f32), (-0.2, 0.3)] {
+        let numeric = (l1(p + eps, t).0 - l1(p - eps, t).0) / (2.0 * eps);
+        assert!((numeric - l1(p, t).1).abs() < 1e-3, "L1");
+    }
+    for lap in [2.5f32, -0.7] {
+        let numeric = (curvature(lap + eps).0 - curvature(lap - eps).0) / (2.0 * eps);
+        assert!((numeric - curvature(lap).1).abs() < 1e-3, "curvature");
+    }
+    let g = [0.3f32, -1.2, 0.5];
+    let n = [0.4f32, 0.8, -0.3];
+    let views = [
+        Tangents { t: [0.6, 0.0, 0.8], t_hat: [0.0, 1.0, 0.0] },
+        Tangents { t: [0.0, 0.6, -0.8], t_hat: [1.0, 0.0, 0.0] },
+    ];
+    let (_, dg) = eikonal(g);
+    let (_, dn) = tangent_loss(n, &views);
+    for a in 0..3 {
+        let (mut up, mut down) = (g, g);
+        up[a] += eps;
+        down[a] -= eps;
+        let numeric = (eikonal(up).0 - eikonal(down).0) / (2.0 * eps);
+        assert!((numeric - dg[a]).abs() < 1e-3, "Eikonal d/dg{a}: {numeric} vs {}", dg[a]);
+        let (mut up, mut down) = (n, n);
+        up[a] += eps;
+        down[a] -= eps;
+        let numeric = (tangent_loss(up, &views).0 - tangent_loss(down, &views).0) / (2.0 * eps);
+        assert!((numeric - dn[a]).abs() < 1e-3, "tangent loss d/dn{a}: {numeric} vs {}", dn[a]);
+    }
+    assert!(dn.iter().any(|v| v.abs() > 1e-2), "the tangent check must not be empty");
 }
