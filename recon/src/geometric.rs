@@ -8,6 +8,7 @@
 use crate::data::TrainingSet;
 use crate::model::Model;
 use crate::pbrdf::dot;
+use crate::volume::unit_sphere_span;
 
 /// The two tangent directions one view gives at a surface point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -94,8 +95,8 @@ pub fn tangents(
             let d = set.frame.dir_from_world(&d_world);
             let (s, c) = view.aop[k].sin_cos();
             let e = [0, 1, 2].map(|a| c * fx[a] + s * fy[a]);
-            let b = dot(x, to_camera);
-            let exit = -b + (b * b - dot(x, x) + 1.0).max(0.0).sqrt();
+            // A point inside the unit sphere always leaves it; outside, nothing can occlude it.
+            let exit = unit_sphere_span(x, to_camera).map_or(0.0, |(_, far)| far);
             queries.push(Query {
                 point: pi,
                 origin: x,

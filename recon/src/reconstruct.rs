@@ -89,7 +89,7 @@ pub fn reconstruct(
     options: &Options,
     mut on_step: impl FnMut(&StepReport, &Trainer),
 ) -> Result<Trainer> {
-    if options.photometric == options.geometric && !options.photometric {
+    if !options.photometric && !options.geometric {
         return Err(Error::invalid("both cues are switched off: nothing to train"));
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
