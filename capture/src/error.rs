@@ -19,6 +19,14 @@ pub enum Error {
         /// What is wrong.
         message: String,
     },
+    /// A camera that cannot be opened, configured or read, or that stopped answering.
+    #[error("camera {device}: {message}")]
+    Camera {
+        /// The camera (vendor, model and serial, or how it was asked for).
+        device: String,
+        /// What went wrong.
+        message: String,
+    },
     /// A processing request that cannot be met (unsupported combination of options).
     #[error("{0}")]
     Unsupported(String),
@@ -31,6 +39,11 @@ impl Error {
     /// A frame error for `source_name` (a file path or a device).
     pub fn frame(source_name: impl Into<String>, message: impl Into<String>) -> Self {
         Error::Frame { source_name: source_name.into(), message: message.into() }
+    }
+
+    /// A camera error for `device`.
+    pub fn camera(device: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::Camera { device: device.into(), message: message.into() }
     }
 
     /// A frame error for a file.

@@ -8,6 +8,7 @@
 //! polarizers `[90 45; 135 0]` under one colour of an RGGB Bayer pattern; and its mono sibling
 //! IMX250MZR. Polarization conventions are those of [`rmvp_dataset::polarization`].
 
+pub mod camera;
 pub mod correction;
 pub mod demosaic;
 pub mod error;
@@ -15,6 +16,7 @@ pub mod mosaic;
 pub mod pipeline;
 pub mod raw;
 pub mod sensor;
+pub mod simulator;
 pub mod stokes;
 
 pub use error::{Error, Result};

@@ -79,18 +79,22 @@ impl SensorModel {
     /// Stokes pixel per 2x2 polarizer cell; RGB for the colour sensor, one channel for mono).
     /// Noise is drawn from streams keyed by `seed` and `frame`: deterministic.
     pub fn expose(&self, stokes: &Stokes, seed: u64, frame: u32) -> RawFrame {
+        self.digitize(&self.electrons(stokes), seed, frame)
+    }
+
+    /// Mean photo-electrons of every sensor pixel (behind its polarizer and colour filter) for
+    /// linear Stokes images at half the sensor's resolution: the noise-free part of
+    /// [`SensorModel::expose`].
+    pub fn electrons(&self, stokes: &Stokes) -> Image<f32> {
         let (w, h) = stokes.s0.size();
         let c = stokes.s0.channels();
-        let full = ((1u32 << self.bits) - 1) as f32;
-        let to_counts = self.counts_per_electron();
         let efficiency = self.polarizer_efficiency();
         let angles: [(f32, f32); 4] = POLARIZER_ANGLES_DEG.map(|d| {
             let t = 2.0 * (d as f32).to_radians();
             (t.cos(), t.sin())
         });
-        let mut pixels = Image::new(2 * w, 2 * h, 1);
-        pixels.data_mut().par_chunks_mut(2 * w).enumerate().for_each(|(y, row)| {
-            let mut rng = Rng::for_pixel(seed, frame, y as u64);
+        let mut electrons = Image::new(2 * w, 2 * h, 1);
+        electrons.data_mut().par_chunks_mut(2 * w).enumerate().for_each(|(y, row)| {
             for (x, out) in row.iter_mut().enumerate() {
                 let angle = POLARIZER_OFFSETS.iter().position(|&o| o == (x % 2, y % 2)).expect("four offsets");
                 let (cx, cy) = (x / 2, y / 2);
@@ -102,14 +106,32 @@ impl SensorModel {
                 let (cos, sin) = angles[angle];
                 let s = [stokes.s0.data()[k], stokes.s1.data()[k], stokes.s2.data()[k]];
                 let intensity = 0.5 * (s[0] + efficiency * (s[1] * cos + s[2] * sin));
-                let mut electrons = (intensity * self.exposure * self.full_well).max(0.0);
-                if self.shot_noise {
-                    electrons = poisson(&mut rng, electrons);
-                }
-                electrons += self.read_noise * rng.normal();
-                *out = (electrons * to_counts + self.dark_offset).round().clamp(0.0, full) as u16;
+                *out = (intensity * self.exposure * self.full_well).max(0.0);
             }
         });
+        electrons
+    }
+
+    /// One noisy frame of mean `electrons` (from [`SensorModel::electrons`]): shot noise, read
+    /// noise, gain, black level, quantization and saturation. Deterministic in `seed`, `frame`.
+    pub fn digitize(&self, electrons: &Image<f32>, seed: u64, frame: u32) -> RawFrame {
+        let w = electrons.width();
+        let full = ((1u32 << self.bits) - 1) as f32;
+        let to_counts = self.counts_per_electron();
+        let mut pixels = Image::new(w, electrons.height(), 1);
+        pixels.data_mut().par_chunks_mut(w).zip(electrons.data().par_chunks(w)).enumerate().for_each(
+            |(y, (row, mean))| {
+                let mut rng = Rng::for_pixel(seed, frame, y as u64);
+                for (out, &mean) in row.iter_mut().zip(mean) {
+                    let mut e = mean;
+                    if self.shot_noise {
+                        e = poisson(&mut rng, e);
+                    }
+                    e += self.read_noise * rng.normal();
+                    *out = (e * to_counts + self.dark_offset).round().clamp(0.0, full) as u16;
+                }
+            },
+        );
         RawFrame { layout: self.layout, bits: self.bits, pixels }
     }
 

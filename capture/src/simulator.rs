@@ -1,0 +1,440 @@
+//! A simulated polarization camera that is a real GenICam device: an aravis GigE Vision fake
+//! camera on loopback, described by our own GenICam XML (`capture/genicam/`: the FLIR Blackfly
+//! S BFS-U3-51S5PC-C features rmvp uses, on a 2448x2048 sensor), streaming raw frames that our
+//! renderer and sensor model make of an object on a simulated motorised turntable.
+//!
+//! Clients reach it exactly as they reach the real camera (GigE Vision instead of USB3 Vision:
+//! the same GenICam features through aravis). The turntable (`TurntablePosition`,
+//! `TurntablePositionReached`) and a lens cap (`LensCap`) are extra features of the simulated
+//! rig; frames show the pose the turntable has reached.
+
+use crate::raw::PixelFormat;
+use crate::sensor::SensorModel;
+use crate::{Error, Result};
+use aravis_sys as ffi;
+use rmvp_dataset::{Camera, Mesh, Stokes};
+use rmvp_render::pbrdf::{Interface, Lobes};
+use rmvp_render::rig::{framing_distance, rig_intrinsics, Rig};
+use rmvp_render::{default_mesh, render_view, EnvMap, Object, Settings};
+use std::ffi::{c_void, CString};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// The GenICam XML of the simulated camera; `{PIXEL_FORMATS}` stands for its enumeration entries.
+const XML_TEMPLATE: &str = include_str!("../genicam/simulated-bfs-u3-51s5pc.xml");
+
+/// Sensor width of the BFS-U3-51S5PC-C (pixels).
+pub const SENSOR_WIDTH: usize = 2448;
+/// Sensor height of the BFS-U3-51S5PC-C (pixels).
+pub const SENSOR_HEIGHT: usize = 2048;
+/// Exposure time at which unit radiance fills [`REFERENCE_FILL`] of the full well (us).
+pub const REFERENCE_EXPOSURE_US: f64 = 20_000.0;
+/// Fraction of the full well that unit rendered radiance fills at [`REFERENCE_EXPOSURE_US`].
+pub const REFERENCE_FILL: f64 = 0.5;
+
+/// Register addresses of the simulated camera (bytes into the fake camera's memory). The
+/// 0x100-0x30c block is aravis's fake-camera map (it drives streaming); 0x1000 up is ours. They
+/// must agree with the XML.
+mod register {
+    pub const VENDOR_NAME: u32 = 0x48;
+    pub const MODEL_NAME: u32 = 0x68;
+    pub const FIRMWARE_VERSION: u32 = 0x88;
+    pub const WIDTH: u32 = 0x100;
+    pub const HEIGHT: u32 = 0x104;
+    pub const SENSOR_HEIGHT: u32 = 0x118;
+    pub const SENSOR_WIDTH: u32 = 0x11c;
+    pub const EXPOSURE_TIME_US: u32 = 0x120;
+    pub const PIXEL_FORMAT: u32 = 0x128;
+    pub const FRAME_PERIOD_US: u32 = 0x138;
+    pub const EXPOSURE_AUTO: u32 = 0x1000;
+    pub const GAIN_AUTO: u32 = 0x1004;
+    pub const GAIN_DB: u32 = 0x1008;
+    pub const FRAME_RATE_ENABLE: u32 = 0x100c;
+    pub const TEMPERATURE_C: u32 = 0x1010;
+    pub const TURNTABLE_POSITION: u32 = 0x1014;
+    pub const TURNTABLE_REACHED: u32 = 0x1018;
+    pub const LENS_CAP: u32 = 0x101c;
+    pub const TURNTABLE_POSITIONS: u32 = 0x1020;
+}
+
+/// Pixel formats the simulated (colour) camera can stream, with the codes it reports. BayerRG*
+/// carry their PFNC codes; the polarized formats have vendor-specific codes on FLIR cameras, so
+/// the simulator uses its own in the PFNC custom range (bit 31) with the right bits-per-pixel
+/// byte. rmvp chooses formats by name, never by code.
+pub const PIXEL_FORMATS: [(&str, u32); 8] = [
+    ("BayerRGPolarized8", 0x8108_0001),
+    ("BayerRGPolarized10p", 0x810a_0002),
+    ("BayerRGPolarized12p", 0x810c_0003),
+    ("BayerRGPolarized16", 0x8110_0004),
+    ("BayerRG8", 0x0108_0009),
+    ("BayerRG10p", 0x010a_0058),
+    ("BayerRG12p", 0x010c_0059),
+    ("BayerRG16", 0x0110_002f),
+];
+
+/// What the simulated camera shows and how it behaves.
+#[derive(Clone, Debug)]
+pub struct SimulatorConfig {
+    /// Serial number it reports (and is opened by).
+    pub serial: String,
+    /// Network interface (name or IPv4 address) it answers on.
+    pub interface: String,
+    /// Object on the turntable (PLY/OBJ); `None`: the built-in "spot".
+    pub mesh: Option<PathBuf>,
+    /// Turntable poses.
+    pub views: usize,
+    /// Renderer samples per pixel.
+    pub spp: u32,
+    /// Seed of the views' random streams and of the sensor noise.
+    pub seed: u64,
+    /// Names of the pixel formats offered (from [`PIXEL_FORMATS`]), in the camera's order.
+    pub pixel_formats: Vec<String>,
+    /// Shot and read noise on (off: every frame of a pose is the same, which is also fastest).
+    pub noise: bool,
+}
+
+impl Default for SimulatorConfig {
+    fn default() -> Self {
+        Self {
+            serial: "RMVPSIM0001".into(),
+            interface: "127.0.0.1".into(),
+            mesh: None,
+            views: 6,
+            spp: 4,
+            seed: 0,
+            pixel_formats: PIXEL_FORMATS.iter().map(|(n, _)| n.to_string()).collect(),
+            noise: true,
+        }
+    }
+}
+
+/// The scene in front of the simulated camera: object, environment and the turntable's poses
+/// (as cameras around the object, OpenCV convention, 1224x1024 Stokes pixels: one per 2x2
+/// polarizer cell of the sensor).
+pub struct SimulatedScene {
+    object: Object,
+    env: EnvMap,
+    /// Camera of each turntable pose.
+    pub cameras: Vec<Camera>,
+    settings: Settings,
+}
+
+impl SimulatedScene {
+    /// Build the scene of `config`.
+    pub fn new(config: &SimulatorConfig) -> Result<Self> {
+        let mesh = match &config.mesh {
+            Some(path) => Mesh::read(path)?,
+            None => default_mesh(),
+        };
+        let object = Object::new(&mesh, Interface::Dielectric(1.5), Lobes::Plastic)?;
+        let (w, h) = ((SENSOR_WIDTH / 2) as u32, (SENSOR_HEIGHT / 2) as u32);
+        let k = rig_intrinsics(w, h);
+        let radius =
+            mesh.positions.iter().map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()).fold(0.0f32, f32::max);
+        let distance = framing_distance(&k, w, h, radius as f64, 0.85);
+        let rig = Rig::Turntable { views: config.views.max(1), elevations: vec![10.0, 35.0] };
+        let cameras = rig.cameras(k, w, h, distance, config.seed);
+        Ok(Self { object, env: EnvMap::procedural(), cameras, settings: Settings { spp: config.spp, seed: config.seed } })
+    }
+
+    /// Render pose `view`: linear RGB Stokes at 1224x1024 (the ground truth of that view).
+    pub fn render(&self, view: usize) -> Stokes {
+        render_view(&self.object, &self.env, &self.cameras[view], self.settings, view as u32).stokes
+    }
+
+    /// The sensor at exposure time `exposure_us` and gain `gain_db`, read out at `bits`.
+    pub fn sensor(exposure_us: f64, gain_db: f64, bits: u8) -> SensorModel {
+        SensorModel {
+            bits,
+            exposure: (REFERENCE_FILL * exposure_us / REFERENCE_EXPOSURE_US) as f32,
+            gain_db: gain_db as f32,
+            ..SensorModel::default()
+        }
+    }
+}
+
+/// The fake camera's pointer, shared by the streaming and turntable threads.
+struct FakeCameraPtr(*mut ffi::ArvFakeCamera);
+// SAFETY: the fake camera's registers are plain memory words guarded by aravis; both threads
+// only read and write aligned registers, and the pointer outlives them (see `Drop`).
+unsafe impl Send for FakeCameraPtr {}
+unsafe impl Sync for FakeCameraPtr {}
+
+impl FakeCameraPtr {
+    fn read(&self, address: u32) -> u32 {
+        let mut value = 0;
+        // SAFETY: valid camera, address inside its memory.
+        unsafe { ffi::arv_fake_camera_read_register(self.0, address, &mut value) };
+        value
+    }
+
+    fn write(&self, address: u32, value: u32) {
+        // SAFETY: as above.
+        unsafe { ffi::arv_fake_camera_write_register(self.0, address, value) };
+    }
+
+    fn read_f32(&self, address: u32) -> f32 {
+        let mut bytes = [0u8; 4];
+        // SAFETY: 4 bytes into a 4-byte buffer.
+        unsafe { ffi::arv_fake_camera_read_memory(self.0, address, 4, bytes.as_mut_ptr().cast()) };
+        f32::from_be_bytes(bytes)
+    }
+
+    fn write_f32(&self, address: u32, value: f32) {
+        let mut bytes = value.to_be_bytes();
+        // SAFETY: as above.
+        unsafe { ffi::arv_fake_camera_write_memory(self.0, address, 4, bytes.as_mut_ptr().cast()) };
+    }
+
+    fn write_string(&self, address: u32, value: &str) {
+        let mut bytes = value.as_bytes().to_vec();
+        bytes.push(0);
+        // SAFETY: the string registers are 32 bytes; callers pass shorter strings.
+        unsafe { ffi::arv_fake_camera_write_memory(self.0, address, bytes.len() as u32, bytes.as_mut_ptr().cast()) };
+    }
+}
+
+/// The last frame's inputs and their noise-free electrons (recomputed when any changes).
+#[derive(Default)]
+struct ExposureCache {
+    key: Option<(usize, u32, u32, u32, bool)>,
+    electrons: Option<Arc<rmvp_dataset::Image<f32>>>,
+    noise_free_bytes: Option<Arc<Vec<u8>>>,
+}
+
+/// State shared by aravis's streaming thread (the fill callback) and the turntable thread.
+struct Shared {
+    camera: FakeCameraPtr,
+    scene: SimulatedScene,
+    poses: Mutex<Vec<Option<Arc<Stokes>>>>,
+    exposure: Mutex<ExposureCache>,
+    frames: AtomicU32,
+    noise: bool,
+    seed: u64,
+    stop: AtomicBool,
+}
+
+impl Shared {
+    /// The bytes of the next frame in `format`, from the current registers.
+    fn frame(&self, format: PixelFormat) -> Arc<Vec<u8>> {
+        let pose = self.camera.read(register::TURNTABLE_REACHED) as usize;
+        let exposure_us = self.camera.read(register::EXPOSURE_TIME_US);
+        let gain_db = self.camera.read_f32(register::GAIN_DB);
+        let capped = self.camera.read(register::LENS_CAP) != 0;
+        let sensor = SimulatedScene::sensor(exposure_us as f64, gain_db as f64, format.bits);
+        let key = (pose, exposure_us, gain_db.to_bits(), format.bits as u32, capped);
+        let frame = self.frames.fetch_add(1, Ordering::Relaxed);
+        let mut cache = self.exposure.lock().expect("exposure cache");
+        if cache.key != Some(key) {
+            let stokes = self.poses.lock().expect("poses")[pose.min(self.scene.cameras.len() - 1)].clone();
+            let electrons = match (stokes, capped) {
+                (Some(stokes), false) => sensor.electrons(&stokes),
+                _ => rmvp_dataset::Image::new(SENSOR_WIDTH, SENSOR_HEIGHT, 1),
+            };
+            *cache = ExposureCache { key: Some(key), electrons: Some(Arc::new(electrons)), noise_free_bytes: None };
+        }
+        if !self.noise {
+            if let Some(bytes) = &cache.noise_free_bytes {
+                return bytes.clone();
+            }
+        }
+        let electrons = cache.electrons.clone().expect("set above");
+        let noise_free = !self.noise;
+        drop(cache);
+        let model = if noise_free { sensor.noise_free() } else { sensor };
+        let raw = model.digitize(&electrons, self.seed, frame);
+        let bytes = Arc::new(raw.encode(format).expect("bits match the format"));
+        if noise_free {
+            self.exposure.lock().expect("exposure cache").noise_free_bytes = Some(bytes.clone());
+        }
+        bytes
+    }
+
+    /// Render `view` unless it is cached.
+    fn ensure_rendered(&self, view: usize) {
+        if self.poses.lock().expect("poses")[view].is_some() {
+            return;
+        }
+        let stokes = Arc::new(self.scene.render(view));
+        self.poses.lock().expect("poses")[view] = Some(stokes);
+    }
+
+    /// Move the turntable when asked, render ahead, and warm the sensor up.
+    fn run_turntable(&self) {
+        let start = Instant::now();
+        let n = self.scene.cameras.len();
+        while !self.stop.load(Ordering::Relaxed) {
+            let target = self.camera.read(register::TURNTABLE_POSITION) as usize;
+            if target < n && target != self.camera.read(register::TURNTABLE_REACHED) as usize {
+                self.ensure_rendered(target);
+                self.camera.write(register::TURNTABLE_REACHED, target as u32);
+            } else if let Some(next) = (0..n).map(|k| (target + k) % n).find(|&v| self.poses.lock().unwrap()[v].is_none())
+            {
+                self.ensure_rendered(next);
+                continue;
+            }
+            let minutes = start.elapsed().as_secs_f32() / 60.0;
+            self.camera.write_f32(register::TEMPERATURE_C, 36.0 + 6.0 * (1.0 - (-minutes / 10.0).exp()));
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
+}
+
+/// The code of a pixel-format name the simulator streams.
+fn format_code(name: &str) -> Option<u32> {
+    PIXEL_FORMATS.iter().find(|(n, _)| *n == name).map(|(_, c)| *c)
+}
+
+/// aravis's fill callback: write the frame for the current registers into `buffer`.
+unsafe extern "C" fn fill_frame(
+    buffer: *mut ffi::ArvBuffer,
+    data: *mut c_void,
+    _exposure_us: u32,
+    _gain: u32,
+    code: ffi::ArvPixelFormat,
+) {
+    // SAFETY: `data` is the `Shared` of the running `SimulatedCamera` (see `start`).
+    let shared = unsafe { &*(data as *const Shared) };
+    let format = PIXEL_FORMATS
+        .iter()
+        .find(|(_, c)| *c == code)
+        .and_then(|(name, _)| PixelFormat::from_name(name).ok());
+    let frame = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| format.map(|f| shared.frame(f))));
+    // The allocated size is the payload (the received size stays 0 with a custom fill).
+    // SAFETY: valid camera pointer.
+    let payload = unsafe { ffi::arv_fake_camera_get_payload(shared.camera.0) };
+    let mut size = 0usize;
+    // SAFETY: `buffer` is the camera's buffer of `payload` bytes (fill_buffer checked).
+    let target = unsafe { ffi::arv_buffer_get_data(buffer, &mut size) };
+    if target.is_null() {
+        return;
+    }
+    // SAFETY: `target` points to at least `payload` writable bytes.
+    let out = unsafe { std::slice::from_raw_parts_mut(target, payload) };
+    match frame {
+        Ok(Some(bytes)) => {
+            let n = bytes.len().min(out.len());
+            out[..n].copy_from_slice(&bytes[..n]);
+        }
+        _ => out.fill(0),
+    }
+}
+
+/// A running simulated camera; it stops when dropped.
+pub struct SimulatedCamera {
+    gv: *mut ffi::ArvGvFakeCamera,
+    shared: Arc<Shared>,
+    turntable: Option<JoinHandle<()>>,
+    /// Serial number to open it by.
+    pub serial: String,
+}
+
+impl SimulatedCamera {
+    /// Render the first pose and start answering on `config.interface`.
+    pub fn start(config: &SimulatorConfig) -> Result<Self> {
+        let unknown: Vec<_> = config.pixel_formats.iter().filter(|n| format_code(n).is_none()).collect();
+        if !unknown.is_empty() || config.pixel_formats.is_empty() {
+            return Err(Error::Unsupported(format!(
+                "the simulated camera streams {}; asked for {:?}",
+                PIXEL_FORMATS.map(|(n, _)| n).join(", "),
+                config.pixel_formats
+            )));
+        }
+        let entries: String = config
+            .pixel_formats
+            .iter()
+            .map(|n| {
+                let code = format_code(n).expect("checked");
+                format!("\t\t<EnumEntry Name=\"{n}\" NameSpace=\"Standard\">\n\t\t\t<Value>{code}</Value>\n\t\t</EnumEntry>\n")
+            })
+            .collect();
+        let xml = tempfile::Builder::new().prefix("rmvp-simulated-camera").suffix(".xml").tempfile().map_err(
+            |e| Error::Unsupported(format!("cannot write the simulated camera's GenICam file: {e}")),
+        )?;
+        std::fs::write(xml.path(), XML_TEMPLATE.replace("{PIXEL_FORMATS}", &entries))
+            .map_err(|e| rmvp_dataset::Error::io(xml.path(), e))?;
+
+        let scene = SimulatedScene::new(config)?;
+        let n = scene.cameras.len();
+        let c_interface = CString::new(config.interface.as_str()).map_err(|_| Error::Unsupported("interface".into()))?;
+        let c_serial = CString::new(config.serial.as_str()).map_err(|_| Error::Unsupported("serial".into()))?;
+        let c_xml = CString::new(xml.path().to_string_lossy().as_bytes()).expect("no NUL in a temp path");
+        // SAFETY: valid C strings; aravis copies them.
+        let gv = unsafe { ffi::arv_gv_fake_camera_new_full(c_interface.as_ptr(), c_serial.as_ptr(), c_xml.as_ptr()) };
+        // SAFETY: `gv` checked for null before use.
+        if gv.is_null() || unsafe { ffi::arv_gv_fake_camera_is_running(gv) } == 0 {
+            return Err(Error::camera(
+                format!("simulated camera on {}", config.interface),
+                "could not open the GigE Vision ports (is another simulated camera running there?)",
+            ));
+        }
+        // SAFETY: `gv` is valid; the fake camera belongs to it.
+        let camera = FakeCameraPtr(unsafe { ffi::arv_gv_fake_camera_get_fake_camera(gv) });
+        camera.write_string(register::VENDOR_NAME, "rmvp");
+        camera.write_string(register::MODEL_NAME, "Simulated BFS-U3-51S5PC-C");
+        camera.write_string(register::FIRMWARE_VERSION, concat!("rmvp-sim ", env!("CARGO_PKG_VERSION")));
+        for (address, value) in [
+            (register::SENSOR_WIDTH, SENSOR_WIDTH as u32),
+            (register::SENSOR_HEIGHT, SENSOR_HEIGHT as u32),
+            (register::WIDTH, SENSOR_WIDTH as u32),
+            (register::HEIGHT, SENSOR_HEIGHT as u32),
+            (register::PIXEL_FORMAT, format_code(&config.pixel_formats[0]).expect("checked")),
+            (register::EXPOSURE_TIME_US, REFERENCE_EXPOSURE_US as u32),
+            (register::FRAME_PERIOD_US, 1_000_000 / 25),
+            (register::EXPOSURE_AUTO, 2),
+            (register::GAIN_AUTO, 2),
+            (register::FRAME_RATE_ENABLE, 0),
+            (register::TURNTABLE_POSITION, 0),
+            (register::TURNTABLE_REACHED, 0),
+            (register::LENS_CAP, 0),
+            (register::TURNTABLE_POSITIONS, n as u32),
+        ] {
+            camera.write(address, value);
+        }
+        camera.write_f32(register::GAIN_DB, 0.0);
+        camera.write_f32(register::TEMPERATURE_C, 36.0);
+
+        let shared = Arc::new(Shared {
+            camera,
+            scene,
+            poses: Mutex::new(vec![None; n]),
+            exposure: Mutex::default(),
+            frames: AtomicU32::new(0),
+            noise: config.noise,
+            seed: config.seed,
+            stop: AtomicBool::new(false),
+        });
+        shared.ensure_rendered(0);
+        // SAFETY: `shared` lives in the returned value, which stops the camera (and with it
+        // the callbacks) before releasing it.
+        unsafe {
+            ffi::arv_fake_camera_set_fill_pattern(shared.camera.0, Some(fill_frame), Arc::as_ptr(&shared) as *mut c_void);
+        }
+        let worker = shared.clone();
+        let turntable = std::thread::Builder::new()
+            .name("simulated turntable".into())
+            .spawn(move || worker.run_turntable())
+            .expect("spawn a thread");
+        Ok(Self { gv, shared, turntable: Some(turntable), serial: config.serial.clone() })
+    }
+
+    /// Number of turntable poses.
+    pub fn views(&self) -> usize {
+        self.shared.scene.cameras.len()
+    }
+}
+
+impl Drop for SimulatedCamera {
+    fn drop(&mut self) {
+        self.shared.stop.store(true, Ordering::Relaxed);
+        if let Some(thread) = self.turntable.take() {
+            let _ = thread.join();
+        }
+        // SAFETY: we own the one reference; this stops aravis's threads (no callback runs
+        // after it) and frees the camera; `shared` is released after.
+        unsafe { aravis::glib::gobject_ffi::g_object_unref(self.gv.cast()) };
+    }
+}
