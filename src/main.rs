@@ -37,6 +37,12 @@ enum Command {
     Align(commands::align::Args),
     /// Reconstruct a scene with NeRSP: mesh, normal maps, re-rendered Stokes.
     Recon(commands::recon::Args),
+    /// Capture a session of polarized views with the camera (or a simulated one).
+    Capture(commands::capture::Args),
+    /// List the GenICam cameras (USB3 Vision, GigE Vision) aravis finds.
+    Cameras,
+    /// Run a simulated polarization camera (GigE Vision on loopback) until killed.
+    SimulateCamera(commands::capture::SimulateCameraArgs),
 }
 
 fn main() {
@@ -55,6 +61,9 @@ fn main() {
         Command::RenderNormals(args) => commands::render_normals::run(args),
         Command::Align(args) => commands::align::run(args),
         Command::Recon(args) => commands::recon::run(args),
+        Command::Capture(args) => commands::capture::run(args),
+        Command::Cameras => commands::capture::cameras(),
+        Command::SimulateCamera(args) => commands::capture::simulate_camera(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

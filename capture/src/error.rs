@@ -27,6 +27,18 @@ pub enum Error {
         /// What went wrong.
         message: String,
     },
+    /// A session that stopped early: the cause, and where the session stands.
+    #[error("{source}\nsession {dir}: {complete} of {planned} views complete and saved; fix the cause and run the same command with --resume to continue", dir = dir.display())]
+    Session {
+        /// What stopped it.
+        source: Box<Error>,
+        /// Session folder.
+        dir: PathBuf,
+        /// Views complete.
+        complete: usize,
+        /// Views planned.
+        planned: usize,
+    },
     /// A processing request that cannot be met (unsupported combination of options).
     #[error("{0}")]
     Unsupported(String),

@@ -14,11 +14,28 @@ pub mod demosaic;
 pub mod error;
 pub mod mosaic;
 pub mod pipeline;
+pub mod preview;
 pub mod raw;
 pub mod sensor;
+pub mod session;
 pub mod simulator;
 pub mod stokes;
 
 pub use error::{Error, Result};
 pub use pipeline::{FrameProcessor, ProcessedFrame};
 pub use raw::{PixelFormat, RawFrame};
+
+/// A progress bar on standard error (hidden when `show` is false).
+pub fn progress_bar(show: bool, total: u64, what: &str) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(total);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{prefix:>10} [{bar:30}] {pos}/{len} {msg} ({elapsed}, eta {eta})")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    bar.set_prefix(what.to_string());
+    bar
+}

@@ -1,6 +1,7 @@
 //! One module per subcommand.
 
 pub mod align;
+pub mod capture;
 pub mod convert;
 pub mod demo;
 pub mod demosaic;
@@ -11,7 +12,7 @@ pub mod render_normals;
 pub mod simulate;
 pub mod stokes;
 
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 
 /// Parse exactly `N` comma-separated numbers ("1.5,2" for `N = 2`).
 pub fn parse_numbers<const N: usize>(text: &str) -> Result<[f32; N], String> {
@@ -24,12 +25,5 @@ pub fn parse_numbers<const N: usize>(text: &str) -> Result<[f32; N], String> {
 
 /// A progress bar over `len` items, labelled `what`.
 pub fn progress(len: u64, what: &str) -> ProgressBar {
-    let bar = ProgressBar::new(len);
-    bar.set_style(
-        ProgressStyle::with_template("{prefix:>10} [{bar:30}] {pos}/{len} {msg} ({elapsed}, eta {eta})")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    bar.set_prefix(what.to_string());
-    bar
+    rmvp_capture::progress_bar(true, len, what)
 }

@@ -78,6 +78,20 @@ fn write_png_bytes(path: &Path, w: usize, h: usize, c: usize, depth: BitDepth, b
     })
 }
 
+/// An 8-bit PNG (1 to 4 channels) in memory, e.g. to serve it.
+pub fn encode_png_u8(image: &Image<u8>) -> Result<Vec<u8>> {
+    let path = Path::new("<memory>");
+    let color = color_type(image.channels(), path)?;
+    let mut bytes = Vec::new();
+    let mut encoder = png::Encoder::new(&mut bytes, image.width() as u32, image.height() as u32);
+    encoder.set_color(color);
+    encoder.set_depth(BitDepth::Eight);
+    encoder.set_compression(png::Compression::Fast);
+    let encoded = encoder.write_header().and_then(|mut w| w.write_image_data(image.data()).and_then(|_| w.finish()));
+    encoded.map_err(|e| Error::format(path, format!("PNG encoding: {e}")))?;
+    Ok(bytes)
+}
+
 /// Write an 8-bit PNG (1 to 4 channels).
 pub fn write_png_u8(path: &Path, image: &Image<u8>) -> Result<()> {
     let (w, h) = image.size();

@@ -1,0 +1,511 @@
+//! Capture sessions: N views of one object, each saved complete or not at all.
+//!
+//! Three stages run concurrently, joined by bounded queues (two views each): acquisition (this
+//! thread: positioning, exposure brackets, K-frame bursts, dropped frames grabbed again),
+//! processing (averaging, dark subtraction, HDR merge, demosaicing, Stokes) and writing (files
+//! into `views/NNN.partial/`, checksums, rename to `views/NNN/`, then the manifest). A view is
+//! complete exactly when `session.json` lists it; `--resume` continues after the last one.
+//!
+//! Session folder:
+//! ```text
+//! session.json                      manifest (camera, settings, views, SHA-256 of every file)
+//! dark/dark_<t>us.png               mean dark frame per exposure time (16-bit mosaic)
+//! views/NNN/raw/<t>us_<k>.raw       every frame kept, bytes exactly as the camera sent them
+//! views/NNN/view_{000,045,090,135}.png   demosaiced angle images (16-bit, linear)
+//! views/NNN/view_stokes.exr         Stokes S0, S1, S2 (RGB), see `stokes_unit` in the manifest
+//! views/NNN/view_{aop,dop}.{exr,png}, view_s0.png   AoP, DoP and a preview
+//! ```
+
+pub mod hdr;
+pub mod manifest;
+pub mod positioning;
+pub mod storage;
+
+use crate::camera::{Camera, CameraSettings, Grab, TriggerSource};
+use crate::correction::{mean_frame, subtract_dark};
+use crate::pipeline::{FrameProcessor, ProcessedFrame};
+use crate::preview::Preview;
+use crate::raw::PixelFormat;
+use crate::{Error, RawFrame, Result};
+use manifest::{utc_now, CameraRecord, DarkRecord, FileRecord, Manifest, SessionSettings, ViewRecord, MANIFEST_FORMAT};
+use positioning::{LastView, Positioning};
+use rmvp_dataset::io::{png, write_bytes_atomically};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// Features read back into the manifest after configuration.
+pub const RECORDED_FEATURES: [&str; 14] = [
+    "PixelFormat",
+    "Width",
+    "Height",
+    "ExposureAuto",
+    "ExposureTime",
+    "GainAuto",
+    "Gain",
+    "AcquisitionMode",
+    "AcquisitionFrameRateEnable",
+    "AcquisitionFrameRate",
+    "TriggerSelector",
+    "TriggerMode",
+    "TriggerSource",
+    "DeviceTemperature",
+];
+
+/// Views waiting between two stages.
+const QUEUE_DEPTH: usize = 2;
+
+/// What to capture and how.
+#[derive(Clone)]
+pub struct SessionOptions {
+    /// Object name.
+    pub object: String,
+    /// Views to capture.
+    pub views: usize,
+    /// Session folder.
+    pub dir: PathBuf,
+    /// Camera settings (its exposure is replaced by each of `exposures_us`).
+    pub camera: CameraSettings,
+    /// Exposure times per view, microseconds (several: HDR bracketing).
+    pub exposures_us: Vec<f64>,
+    /// Frames averaged per exposure.
+    pub average: usize,
+    /// Dark frames averaged per exposure (0: none).
+    pub dark_frames: usize,
+    /// How views are positioned.
+    pub positioning: Positioning,
+    /// Continue an existing session.
+    pub resume: bool,
+    /// Longest wait for one frame before asking whether the camera is still there.
+    pub frame_timeout: Duration,
+    /// Live preview to update after each view.
+    pub preview: Option<Arc<Preview>>,
+    /// Show a progress bar.
+    pub progress: bool,
+}
+
+/// How a session run ended.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SessionReport {
+    /// Views complete in the session.
+    pub views_complete: usize,
+    /// Views planned.
+    pub views_planned: usize,
+    /// Views captured by this run.
+    pub views_captured: usize,
+    /// Frames lost by the stream and grabbed again during this run.
+    pub dropped_frames: usize,
+}
+
+/// The frames of one view, as grabbed.
+struct GrabbedView {
+    index: usize,
+    captured_at: String,
+    temperature_c: Option<f64>,
+    /// Per exposure: the frames' bytes.
+    frames: Vec<Vec<Vec<u8>>>,
+    dropped: usize,
+}
+
+/// A processed view on its way to disk.
+struct ProcessedView {
+    grabbed: GrabbedView,
+    processed: ProcessedFrame,
+    saturated_fraction: f64,
+    mean_dop: f64,
+}
+
+/// Run (or resume) a session with `camera`. On any error, every view grabbed before it is still
+/// written, the manifest stays consistent, and the error says how to resume.
+pub fn capture(camera: &mut Camera, options: &SessionOptions) -> Result<SessionReport> {
+    if options.views == 0 || options.exposures_us.is_empty() || options.average == 0 {
+        return Err(Error::Unsupported("a session needs at least one view, exposure and frame".into()));
+    }
+    let dir = options.dir.as_path();
+    let mut settings = options.camera.clone();
+    settings.exposure_us = options.exposures_us[0];
+    let format = camera.configure(&settings)?;
+    let mut manifest = open_manifest(camera, options, &settings, format)?;
+    clean_incomplete(dir, &manifest)?;
+    manifest.write(dir)?;
+
+    let darks = dark_frames(camera, options, &mut manifest, format)?;
+    let start = manifest.views.len();
+    let bar = crate::progress_bar(options.progress, options.views as u64, "views");
+    bar.set_position(start as u64);
+    let last = Arc::new(Mutex::new(LastView { done: start, ..LastView::default() }));
+    let (to_processing, from_acquisition) = sync_channel::<GrabbedView>(QUEUE_DEPTH);
+    let (to_writer, from_processing) = sync_channel::<ProcessedView>(QUEUE_DEPTH);
+    let (acquired, processed, written) = std::thread::scope(|scope| {
+        let frame_format = camera.frame_format();
+        let processing = scope.spawn(move || process_views(from_acquisition, to_writer, frame_format, options, &darks));
+        let writing = scope.spawn(|| write_views(from_processing, &mut manifest, options, &last, &bar));
+        let acquired = acquire_views(camera, to_processing, options, start, &last);
+        (acquired, processing.join().expect("processing thread"), writing.join().expect("writing thread"))
+    });
+    bar.finish();
+    let complete = manifest.views.len();
+    // The acquisition error is the cause when there is one (later stages then stop early).
+    let outcome = acquired.and_then(|dropped| processed.and(written).map(|_| dropped));
+    match outcome {
+        Ok(dropped) => Ok(SessionReport {
+            views_complete: complete,
+            views_planned: options.views,
+            views_captured: complete - start,
+            dropped_frames: dropped,
+        }),
+        Err(e) => Err(Error::Session {
+            source: Box::new(e),
+            dir: dir.to_path_buf(),
+            complete,
+            planned: options.views,
+        }),
+    }
+}
+
+/// Read the manifest to resume, or start a new one; check that a resumed session continues
+/// with the same camera and settings.
+fn open_manifest(
+    camera: &Camera,
+    options: &SessionOptions,
+    settings: &CameraSettings,
+    format: PixelFormat,
+) -> Result<Manifest> {
+    let dir = options.dir.as_path();
+    let (_, width, height) = camera.frame_format();
+    let features: BTreeMap<String, String> = RECORDED_FEATURES
+        .iter()
+        .filter_map(|f| camera.feature(f).ok().map(|v| (f.to_string(), v)))
+        .collect();
+    let stokes_unit = if options.exposures_us.len() > 1 {
+        let shortest = options.exposures_us.iter().copied().fold(f64::INFINITY, f64::min);
+        format!("full scale of the HDR-merged frame: full scale at the shortest exposure, {shortest} us, gain {} dB", settings.gain_db)
+    } else {
+        format!("full scale of the {}-bit frame at {} us, gain {} dB", format.bits, options.exposures_us[0], settings.gain_db)
+    };
+    let fresh = Manifest {
+        format: MANIFEST_FORMAT.into(),
+        object: options.object.clone(),
+        views_planned: options.views,
+        created: utc_now(),
+        updated: utc_now(),
+        camera: CameraRecord { identity: camera.identity(), pixel_format: format.name(), width, height, features },
+        settings: SessionSettings {
+            camera: settings.clone(),
+            exposures_us: options.exposures_us.clone(),
+            average: options.average,
+            dark_frames: options.dark_frames,
+            positioning: options.positioning.name().into(),
+            stokes_unit,
+        },
+        dark: Vec::new(),
+        views: Vec::new(),
+        complete: false,
+    };
+    let exists = dir.join(manifest::MANIFEST_FILE).exists();
+    if !options.resume {
+        if exists {
+            let old = Manifest::read(dir)?;
+            return Err(Error::in_file(
+                dir,
+                format!(
+                    "already holds a session of {:?} ({} of {} views); pass --resume to continue it, or choose another folder",
+                    old.object,
+                    old.views.len(),
+                    old.views_planned
+                ),
+            ));
+        }
+        std::fs::create_dir_all(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
+        return Ok(fresh);
+    }
+    if !exists {
+        return Err(Error::in_file(dir, "has no session to resume (no session.json)"));
+    }
+    let mut old = Manifest::read(dir)?;
+    old.verify(dir)?;
+    let mismatch = |what: &str, was: String, now: String| {
+        Error::in_file(dir, format!("was captured with {what} {was}; this run has {now}: resume with the same camera and options"))
+    };
+    if old.object != fresh.object {
+        return Err(mismatch("object", old.object, fresh.object));
+    }
+    if old.camera.identity.serial != fresh.camera.identity.serial {
+        return Err(mismatch("camera", old.camera.identity.serial, fresh.camera.identity.serial));
+    }
+    if old.camera.pixel_format != fresh.camera.pixel_format {
+        return Err(mismatch("pixel format", old.camera.pixel_format, fresh.camera.pixel_format));
+    }
+    let acquisition = |s: &SessionSettings| (s.exposures_us.clone(), s.average, s.dark_frames, s.camera.gain_db);
+    if acquisition(&old.settings) != acquisition(&fresh.settings) {
+        return Err(mismatch(
+            "exposures, averaging, dark frames and gain",
+            format!("{:?}", acquisition(&old.settings)),
+            format!("{:?}", acquisition(&fresh.settings)),
+        ));
+    }
+    old.views_planned = options.views.max(old.views.len());
+    old.complete = old.views.len() >= old.views_planned;
+    Ok(old)
+}
+
+/// Remove what an interrupted run left that the manifest does not list.
+fn clean_incomplete(dir: &Path, manifest: &Manifest) -> Result<()> {
+    let views = dir.join("views");
+    let Ok(entries) = std::fs::read_dir(&views) else { return Ok(()) };
+    for entry in entries.flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if !manifest.views.iter().any(|v| v.name == name) {
+            std::fs::remove_dir_all(entry.path()).map_err(|e| rmvp_dataset::Error::io(&entry.path(), e))?;
+        }
+    }
+    Ok(())
+}
+
+/// The mean dark frame of each exposure: read from the session, or captured now.
+fn dark_frames(
+    camera: &mut Camera,
+    options: &SessionOptions,
+    manifest: &mut Manifest,
+    format: PixelFormat,
+) -> Result<Vec<Option<RawFrame>>> {
+    let dir = options.dir.as_path();
+    if options.dark_frames == 0 {
+        return Ok(vec![None; options.exposures_us.len()]);
+    }
+    if manifest.dark.len() == options.exposures_us.len() {
+        return manifest
+            .dark
+            .iter()
+            .map(|d| {
+                let path = dir.join(&d.file.path);
+                RawFrame::read(&path, format, 0, 0).map(Some)
+            })
+            .collect();
+    }
+    let (_, width, height) = camera.frame_format();
+    options.positioning.cap_lens(camera, true)?;
+    let mut darks = Vec::new();
+    let mut dropped = 0;
+    for &exposure in &options.exposures_us {
+        camera.set_exposure(exposure)?;
+        camera.start()?;
+        let frames = grab_frames(camera, options, options.dark_frames, &mut dropped)?;
+        camera.stop()?;
+        let frames: Vec<RawFrame> = frames
+            .iter()
+            .map(|b| RawFrame::decode(b, format, width, height, camera.name()))
+            .collect::<Result<_>>()?;
+        let mean = mean_frame(&frames)?;
+        let relative = format!("dark/dark_{exposure}us.png");
+        png::write_png_u16(&dir.join(&relative), &mean.pixels)?;
+        manifest.dark.push(DarkRecord {
+            exposure_us: exposure,
+            frames: frames.len(),
+            file: FileRecord::of(dir, &relative)?,
+        });
+        darks.push(Some(mean));
+    }
+    options.positioning.cap_lens(camera, false)?;
+    manifest.write(dir)?;
+    Ok(darks)
+}
+
+/// Grab `count` complete frames (after one settling frame when free running): frames the
+/// stream loses, or that arrive short, are counted in `dropped` and grabbed again.
+fn grab_frames(camera: &mut Camera, options: &SessionOptions, count: usize, dropped: &mut usize) -> Result<Vec<Vec<u8>>> {
+    let (format, width, height) = camera.frame_format();
+    let expected = format.frame_bytes(width, height);
+    let free_running = options.camera.trigger == TriggerSource::FreeRun;
+    let mut settle = usize::from(free_running);
+    let mut frames = Vec::with_capacity(count);
+    let mut failures = 0;
+    while frames.len() < count {
+        match camera.grab(options.frame_timeout)? {
+            Grab::Frame(bytes) if bytes.len() >= expected => {
+                if settle > 0 {
+                    settle -= 1;
+                } else {
+                    frames.push(bytes);
+                }
+                continue;
+            }
+            Grab::Timeout if !free_running => continue,
+            Grab::Frame(_) | Grab::Dropped(_) | Grab::Timeout => {
+                *dropped += 1;
+                failures += 1;
+            }
+        }
+        if failures > 10 + 2 * count {
+            return Err(Error::camera(
+                camera.name(),
+                format!("{failures} frames lost or incomplete while grabbing {count}: check the cable and bandwidth"),
+            ));
+        }
+    }
+    Ok(frames)
+}
+
+/// Acquisition stage: position, bracket, grab; hand each view to processing. Returns the
+/// frames dropped (and grabbed again).
+fn acquire_views(
+    camera: &mut Camera,
+    to_processing: SyncSender<GrabbedView>,
+    options: &SessionOptions,
+    start: usize,
+    last: &Mutex<LastView>,
+) -> Result<usize> {
+    let mut dropped_total = 0;
+    for index in start..options.views {
+        let status = last.lock().expect("last view").clone();
+        options.positioning.prepare(camera, index, options.views, &status)?;
+        let captured_at = utc_now();
+        let temperature_c = camera.float("DeviceTemperature").ok();
+        let mut frames = Vec::new();
+        let mut dropped = 0;
+        for &exposure in &options.exposures_us {
+            camera.set_exposure(exposure)?;
+            camera.start()?;
+            frames.push(grab_frames(camera, options, options.average, &mut dropped)?);
+            camera.stop()?;
+        }
+        dropped_total += dropped;
+        let view = GrabbedView { index, captured_at, temperature_c, frames, dropped };
+        if to_processing.send(view).is_err() {
+            break; // a later stage failed; its error is reported
+        }
+    }
+    Ok(dropped_total)
+}
+
+/// Processing stage: decode, average, subtract darks, merge brackets, compute Stokes.
+fn process_views(
+    from_acquisition: Receiver<GrabbedView>,
+    to_writer: SyncSender<ProcessedView>,
+    frame_format: (PixelFormat, usize, usize),
+    options: &SessionOptions,
+    darks: &[Option<RawFrame>],
+) -> Result<()> {
+    let processor = FrameProcessor { saturation_aware: true, ..FrameProcessor::default() };
+    let (format, w, h) = frame_format;
+    for grabbed in from_acquisition {
+        let source = format!("view {}", grabbed.index);
+        let mut means = Vec::new();
+        for (frames, dark) in grabbed.frames.iter().zip(darks) {
+            let decoded: Vec<RawFrame> =
+                frames.iter().map(|b| RawFrame::decode(b, format, w, h, &source)).collect::<Result<_>>()?;
+            let mut mean = mean_frame(&decoded)?;
+            if let Some(dark) = dark {
+                subtract_dark(&mut mean, dark)?;
+            }
+            means.push(mean);
+        }
+        let frame = if means.len() > 1 { hdr::merge(&means, &options.exposures_us)? } else { means.remove(0) };
+        let processed = processor.process(&frame)?;
+        let (saturated_fraction, mean_dop) = statistics(&processed);
+        if to_writer.send(ProcessedView { grabbed, processed, saturated_fraction, mean_dop }).is_err() {
+            break;
+        }
+    }
+    Ok(())
+}
+
+/// Fraction of pixels with a saturated angle, and mean DoP over pixels above 5 % full scale.
+fn statistics(frame: &ProcessedFrame) -> (f64, f64) {
+    let saturated = frame.estimate.saturated.data();
+    let saturated_fraction = saturated.iter().filter(|&&s| s > 0).count() as f64 / saturated.len().max(1) as f64;
+    let s0 = frame.estimate.stokes.s0.data();
+    let c = frame.estimate.stokes.s0.channels();
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (px, &dop) in s0.chunks_exact(c).zip(frame.dop.data()) {
+        if px.iter().sum::<f32>() / c as f32 > 0.05 && dop.is_finite() {
+            sum += dop as f64;
+            n += 1;
+        }
+    }
+    (saturated_fraction, if n > 0 { sum / n as f64 } else { 0.0 })
+}
+
+/// Writing stage: files into `views/NNN.partial/`, checksums, rename, manifest.
+fn write_views(
+    from_processing: Receiver<ProcessedView>,
+    manifest: &mut Manifest,
+    options: &SessionOptions,
+    last: &Mutex<LastView>,
+    bar: &indicatif::ProgressBar,
+) -> Result<()> {
+    let dir = options.dir.as_path();
+    let views_dir = dir.join("views");
+    for view in from_processing {
+        let name = format!("{:03}", view.grabbed.index);
+        let partial = views_dir.join(format!("{name}.partial"));
+        let raw_bytes: usize = view.grabbed.frames.iter().flatten().map(Vec::len).sum();
+        let (w, h) = view.processed.aop.size();
+        storage::ensure_space(dir, raw_bytes as u64 + (w * h * 80) as u64)?;
+        if partial.exists() {
+            std::fs::remove_dir_all(&partial).map_err(|e| rmvp_dataset::Error::io(&partial, e))?;
+        }
+        for (frames, exposure) in view.grabbed.frames.iter().zip(&options.exposures_us) {
+            for (k, bytes) in frames.iter().enumerate() {
+                write_bytes_atomically(&partial.join(format!("raw/{exposure}us_{k}.raw")), bytes)?;
+            }
+        }
+        view.processed.write(&partial, "view")?;
+        let final_dir = views_dir.join(&name);
+        std::fs::rename(&partial, &final_dir).map_err(|e| rmvp_dataset::Error::io(&final_dir, e))?;
+        sync_dir(&views_dir)?;
+        let files = list_files(dir, &final_dir)?;
+        let frames = view.grabbed.frames.iter().map(Vec::len).sum();
+        manifest.views.push(ViewRecord {
+            index: view.grabbed.index,
+            name: name.clone(),
+            captured_at: view.grabbed.captured_at.clone(),
+            temperature_c: view.grabbed.temperature_c,
+            frames,
+            dropped_frames: view.grabbed.dropped,
+            saturated_fraction: view.saturated_fraction,
+            mean_dop: view.mean_dop,
+            files,
+        });
+        manifest.complete = manifest.views.len() >= manifest.views_planned;
+        manifest.write(dir)?;
+        *last.lock().expect("last view") =
+            LastView { done: manifest.views.len(), saturated_fraction: view.saturated_fraction, mean_dop: view.mean_dop };
+        if let Some(preview) = &options.preview {
+            preview.update(&view.processed, &name, manifest.views.len(), manifest.views_planned);
+        }
+        bar.inc(1);
+    }
+    Ok(())
+}
+
+/// Every file under `folder`, with size and checksum, paths relative to `root`, sorted.
+fn list_files(root: &Path, folder: &Path) -> Result<Vec<FileRecord>> {
+    let mut paths = Vec::new();
+    let mut stack = vec![folder.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).map_err(|e| rmvp_dataset::Error::io(&d, e))? {
+            let path = entry.map_err(|e| rmvp_dataset::Error::io(&d, e))?.path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                paths.push(path);
+            }
+        }
+    }
+    paths.sort();
+    paths
+        .iter()
+        .map(|p| {
+            let relative = p.strip_prefix(root).expect("under root").to_string_lossy().into_owned();
+            FileRecord::of(root, &relative)
+        })
+        .collect()
+}
+
+/// Flush a folder's entries (a rename) to disk.
+fn sync_dir(dir: &Path) -> Result<()> {
+    std::fs::File::open(dir).and_then(|f| f.sync_all()).map_err(|e| rmvp_dataset::Error::io(dir, e).into())
+}

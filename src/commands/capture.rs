@@ -1,0 +1,198 @@
+//! `rmvp capture`: a capture session with the polarization camera (or the simulated one), and
+//! `rmvp cameras` / `rmvp simulate-camera` around it.
+
+use anyhow::{bail, Context, Result};
+use rmvp_capture::camera::{describe, list_devices, Camera, CameraSettings, TriggerSource};
+use rmvp_capture::preview::{serve, Preview};
+use rmvp_capture::session::positioning::Positioning;
+use rmvp_capture::session::{capture, SessionOptions};
+use rmvp_capture::simulator::{SimulatedCamera, SimulatorConfig};
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Arguments of `rmvp capture`.
+#[derive(clap::Args, Clone)]
+pub struct Args {
+    /// Name of the object (recorded in the manifest).
+    #[arg(long)]
+    pub object: String,
+    /// Views to capture (RMVP3D: about 60 per object).
+    #[arg(long, default_value_t = 60)]
+    pub views: usize,
+    /// Session folder.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Camera by serial number, IP address or aravis id (default: the first camera found).
+    #[arg(long, conflicts_with = "simulated")]
+    pub camera: Option<String>,
+    /// Use a simulated camera (GigE Vision on 127.0.0.1, the built-in object on a turntable).
+    #[arg(long)]
+    pub simulated: bool,
+    /// Exposure time in microseconds.
+    #[arg(long, default_value_t = 20_000.0)]
+    pub exposure: f64,
+    /// Analog gain in dB.
+    #[arg(long, default_value_t = 0.0)]
+    pub gain: f64,
+    /// HDR bracketing: exposure times in microseconds, comma-separated (replaces --exposure).
+    #[arg(long, value_delimiter = ',')]
+    pub hdr: Vec<f64>,
+    /// Frames averaged per exposure.
+    #[arg(long, default_value_t = 1)]
+    pub average: usize,
+    /// Dark frames (lens covered) averaged per exposure at the start; 0: none.
+    #[arg(long, default_value_t = 0)]
+    pub dark: usize,
+    /// Continue the session in --output after its last complete view.
+    #[arg(long)]
+    pub resume: bool,
+    /// Pixel format by GenICam name (default: negotiated, BayerRGPolarized12p first).
+    #[arg(long)]
+    pub pixel_format: Option<String>,
+    /// Frame rate in Hz (default: as fast as the exposure allows).
+    #[arg(long)]
+    pub frame_rate: Option<f64>,
+    /// How views start: interactive (Enter), timed, trigger (Line0) or turntable (default:
+    /// turntable when the camera has one, else interactive).
+    #[arg(long)]
+    pub mode: Option<String>,
+    /// Seconds between views in timed mode.
+    #[arg(long, default_value_t = 3.0)]
+    pub interval: f64,
+    /// Serve a live preview page on this address (e.g. 127.0.0.1:8642).
+    #[arg(long)]
+    pub preview: Option<std::net::SocketAddr>,
+    /// Simulated camera: object mesh (PLY/OBJ; default: the built-in spot).
+    #[arg(long, requires = "simulated")]
+    pub mesh: Option<PathBuf>,
+    /// Seconds to wait for one frame before checking that the camera is still there.
+    #[arg(long, default_value_t = 5.0)]
+    pub frame_timeout: f64,
+}
+
+/// Run the command.
+pub fn run(args: Args) -> Result<()> {
+    let simulator = if args.simulated {
+        let config = SimulatorConfig { views: args.views, mesh: args.mesh.clone(), ..SimulatorConfig::default() };
+        eprintln!("starting the simulated camera {} (rendering its first view)", config.serial);
+        Some(SimulatedCamera::start(&config)?)
+    } else {
+        None
+    };
+    let selector = simulator.as_ref().map(|s| s.serial.clone()).or(args.camera.clone());
+    let mut camera = Camera::open(selector.as_deref())?;
+    let id = camera.identity();
+    eprintln!("camera: {} {} serial {} firmware {} ({})", id.vendor, id.model, id.serial, id.firmware, id.protocol);
+    let positioning = match args.mode.as_deref() {
+        None => Positioning::default_for(&camera),
+        Some("interactive") => Positioning::Interactive,
+        Some("timed") => Positioning::Timed(Duration::from_secs_f64(args.interval)),
+        Some("trigger") => Positioning::HardwareTrigger,
+        Some("turntable") => Positioning::Turntable,
+        Some(other) => bail!("--mode {other}: expected interactive, timed, trigger or turntable"),
+    };
+    let trigger = if positioning == Positioning::HardwareTrigger { TriggerSource::Line0 } else { TriggerSource::FreeRun };
+    let preview = args.preview.map(|_| Arc::new(Preview::default()));
+    let _server = match (args.preview, &preview) {
+        (Some(address), Some(preview)) => {
+            let server = serve(preview.clone(), address)?;
+            eprintln!("live preview: http://{}/", server.address);
+            Some(server)
+        }
+        _ => None,
+    };
+    let options = SessionOptions {
+        object: args.object.clone(),
+        views: args.views,
+        dir: args.output.clone(),
+        camera: CameraSettings {
+            pixel_format: args.pixel_format.clone(),
+            exposure_us: args.exposure,
+            gain_db: args.gain,
+            frame_rate: args.frame_rate,
+            trigger,
+        },
+        exposures_us: if args.hdr.is_empty() { vec![args.exposure] } else { args.hdr.clone() },
+        average: args.average,
+        dark_frames: args.dark,
+        positioning,
+        resume: args.resume,
+        frame_timeout: Duration::from_secs_f64(args.frame_timeout),
+        preview,
+        progress: true,
+    };
+    let report = capture(&mut camera, &options)?;
+    eprintln!(
+        "{} of {} views complete in {} ({} captured now, {} dropped frames grabbed again)",
+        report.views_complete,
+        report.views_planned,
+        args.output.display(),
+        report.views_captured,
+        report.dropped_frames
+    );
+    Ok(())
+}
+
+/// Arguments of `rmvp simulate-camera`.
+#[derive(clap::Args, Clone)]
+pub struct SimulateCameraArgs {
+    /// Serial number to answer to.
+    #[arg(long, default_value = "RMVPSIM0001")]
+    pub serial: String,
+    /// Network interface or IPv4 address to answer on.
+    #[arg(long, default_value = "127.0.0.1")]
+    pub interface: String,
+    /// Turntable poses.
+    #[arg(long, default_value_t = 6)]
+    pub views: usize,
+    /// Object mesh (PLY/OBJ; default: the built-in spot).
+    #[arg(long)]
+    pub mesh: Option<PathBuf>,
+    /// Pixel formats offered, comma-separated (default: BayerRGPolarized8/10p/12p/16, BayerRG8/10p/12p/16).
+    #[arg(long, value_delimiter = ',')]
+    pub pixel_formats: Vec<String>,
+    /// Renderer samples per pixel.
+    #[arg(long, default_value_t = 4)]
+    pub spp: u32,
+    /// No shot or read noise (every frame of a pose identical; fastest).
+    #[arg(long)]
+    pub noise_free: bool,
+    /// Seed of the views and the noise.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+/// Run a simulated camera until killed.
+pub fn simulate_camera(args: SimulateCameraArgs) -> Result<()> {
+    let mut config = SimulatorConfig {
+        serial: args.serial,
+        interface: args.interface,
+        mesh: args.mesh,
+        views: args.views,
+        spp: args.spp,
+        seed: args.seed,
+        noise: !args.noise_free,
+        ..SimulatorConfig::default()
+    };
+    if !args.pixel_formats.is_empty() {
+        config.pixel_formats = args.pixel_formats;
+    }
+    let camera = SimulatedCamera::start(&config).context("starting the simulated camera")?;
+    eprintln!(
+        "simulated camera {} ready on {} (GigE Vision), {} turntable poses; stop with Ctrl-C",
+        camera.serial,
+        config.interface,
+        camera.views()
+    );
+    loop {
+        std::thread::park();
+    }
+}
+
+/// List the cameras aravis finds.
+pub fn cameras() -> Result<()> {
+    let devices = list_devices();
+    println!("{}", describe(&devices));
+    Ok(())
+}
