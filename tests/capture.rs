@@ -1,0 +1,189 @@
+//! Capture sessions end to end: `rmvp capture` against `rmvp simulate-camera` (a GenICam GigE
+//! Vision camera on loopback, in its own process so that it can be killed).
+
+use rmvp_capture::correction::subtract_dark;
+use rmvp_capture::session::manifest::Manifest;
+use rmvp_capture::FrameProcessor;
+use rmvp_capture::simulator::{SimulatedScene, SimulatorConfig};
+use rmvp_dataset::layout::canonical::read_stokes;
+use std::io::{BufRead, BufReader};
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+/// One simulated camera per address: tests take turns.
+static LOOPBACK: Mutex<()> = Mutex::new(());
+
+/// A simulated camera process, killed when dropped.
+struct SimulatedCameraProcess(Child);
+
+impl SimulatedCameraProcess {
+    fn start(serial: &str, views: usize) -> Self {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_rmvp"))
+            .args(["simulate-camera", "--serial", serial, "--views", &views.to_string()])
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("rmvp runs");
+        let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
+        let ready = lines.next().expect("a line").unwrap();
+        assert!(ready.contains("ready"), "{ready}");
+        // Keep draining its stderr so that it never blocks on a full pipe.
+        std::thread::spawn(move || lines.for_each(drop));
+        Self(child)
+    }
+
+    fn kill(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+impl Drop for SimulatedCameraProcess {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+fn capture_command(serial: &str, dir: &Path, extra: &[&str]) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_rmvp"));
+    command.args(["capture", "--camera", serial, "--object", "spot", "--views", "6", "-o", dir.to_str().unwrap()]);
+    command.args(["--frame-timeout", "2"]).args(extra);
+    command
+}
+
+fn run(mut command: Command) -> Output {
+    command.output().expect("rmvp runs")
+}
+
+/// The Stokes images the session would hold without noise: the rendered truth through the
+/// noise-free sensor, black level removed, and the same processing.
+fn noise_free_capture(truth: &rmvp_dataset::Stokes) -> rmvp_dataset::Stokes {
+    let sensor = SimulatedScene::sensor(20_000.0, 0.0, 12).noise_free();
+    let mut raw = sensor.digitize(&sensor.electrons(truth), 0, 0);
+    let black = sensor.dark_frame(truth.s0.width(), truth.s0.height(), 0);
+    subtract_dark(&mut raw, &black).unwrap();
+    let processor = FrameProcessor { saturation_aware: true, ..FrameProcessor::default() };
+    processor.process(&raw).unwrap().estimate.stokes
+}
+
+/// How a captured view differs from the truth: |S0 error| / sigma against the noise-free
+/// capture (sigma: the S0 noise the sensor model injects, shot and read noise of the polarizer
+/// samples), median and 90th percentile over object pixels, and the median AoP error
+/// (degrees) against the rendered truth where it is polarized (DoP > 0.1).
+fn residuals(view: &Path, truth: &rmvp_dataset::Stokes) -> (f64, f64, f64) {
+    let measured = read_stokes(&view.join("view_stokes.exr")).unwrap();
+    let reference = noise_free_capture(truth);
+    let sensor = SimulatedScene::sensor(20_000.0, 0.0, 12);
+    let gain = sensor.stokes_gain() as f64;
+    let (mut z, mut aop_errors) = (Vec::new(), Vec::new());
+    let channels = truth.s0.channels();
+    for i in 0..truth.s0.data().len() {
+        let t0 = truth.s0.data()[i] as f64;
+        if t0 < 0.05 {
+            continue;
+        }
+        // Four samples of about t0/2 each: electrons e = t0/2 * exposure * full well; S0 is
+        // half their sum, so its sigma is that of one sample.
+        let electrons = 0.5 * t0 * sensor.exposure as f64 * sensor.full_well as f64;
+        let sigma = (electrons + (sensor.read_noise as f64).powi(2)).sqrt() / sensor.full_well as f64;
+        z.push((measured.s0.data()[i] as f64 - reference.s0.data()[i] as f64).abs() / sigma);
+        if i % channels == 1 {
+            let (t1, t2) = (truth.s1.data()[i] as f64, truth.s2.data()[i] as f64);
+            if (t1 * t1 + t2 * t2).sqrt() / t0 > 0.1 {
+                let (m1, m2) = (measured.s1.data()[i] as f64 / gain, measured.s2.data()[i] as f64 / gain);
+                let d = 0.5 * (m2.atan2(m1) - t2.atan2(t1));
+                let d = (d + std::f64::consts::FRAC_PI_2).rem_euclid(std::f64::consts::PI) - std::f64::consts::FRAC_PI_2;
+                aop_errors.push(d.abs().to_degrees());
+            }
+        }
+    }
+    assert!(z.len() > 10_000 && aop_errors.len() > 1_000, "{} object pixels, {} polarized", z.len(), aop_errors.len());
+    let quantile = |v: &mut Vec<f64>, q: f64| {
+        v.sort_by(f64::total_cmp);
+        v[(q * v.len() as f64) as usize]
+    };
+    (quantile(&mut z, 0.5), quantile(&mut z, 0.9), quantile(&mut aop_errors, 0.5))
+}
+
+#[test]
+fn a_six_view_session_matches_the_renderer_within_the_noise() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("session");
+    let _camera = SimulatedCameraProcess::start("RMVPSESS01", 6);
+    // Dark frames (the simulated rig's lens cap) remove the black level.
+    let out = run(capture_command("RMVPSESS01", &dir, &["--dark", "4"]));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let manifest = Manifest::read(&dir).unwrap();
+    assert_eq!((manifest.dark.len(), manifest.dark[0].frames), (1, 4));
+    assert!(manifest.complete);
+    assert_eq!(manifest.views.len(), 6);
+    assert_eq!(manifest.camera.identity.serial, "RMVPSESS01");
+    assert_eq!(manifest.camera.pixel_format, "BayerRGPolarized12p");
+    assert_eq!(manifest.camera.features["ExposureAuto"], "Off");
+    assert_eq!(manifest.camera.features["ExposureTime"], "20000");
+    manifest.verify(&dir).unwrap();
+
+    let scene = SimulatedScene::new(&SimulatorConfig { views: 6, ..SimulatorConfig::default() }).unwrap();
+    for view in &manifest.views {
+        let truth = scene.render(view.index);
+        let (z, z90, aop) = residuals(&dir.join("views").join(&view.name), &truth);
+        // Gaussian noise has median |z| = 0.67 and 90th percentile 1.64 (demosaicing smooths
+        // it a little).
+        eprintln!("view {}: |S0 error| median {z:.2}, p90 {z90:.2} sigma; median AoP error {aop:.2} deg", view.index);
+        assert!(z < 0.8 && z90 < 2.0, "view {}: |S0 error| median {z:.2}, p90 {z90:.2} sigma", view.index);
+        assert!(aop < 6.0, "view {}: median AoP error {aop:.2} deg", view.index);
+    }
+    // The same check fails against the wrong pose.
+    let (z, z90, _) = residuals(&dir.join("views/000"), &scene.render(1));
+    eprintln!("against the wrong pose: |z| median {z:.2}, p90 {z90:.2}");
+    assert!(z90 > 5.0, "a wrong pose gave |z| p90 {z90:.2}");
+}
+
+#[test]
+fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("session");
+    let mut camera = SimulatedCameraProcess::start("RMVPKILL01", 6);
+    let mut session = capture_command("RMVPKILL01", &dir, &[]).stderr(Stdio::piped()).spawn().unwrap();
+    let start = Instant::now();
+    while Manifest::read(&dir).map_or(0, |m| m.views.len()) < 2 {
+        assert!(start.elapsed() < Duration::from_secs(120), "no progress");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    camera.kill();
+    let out = session.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("RMVPKILL01"), "the error names the camera: {stderr}");
+    assert!(stderr.contains("--resume"), "the error says how to continue: {stderr}");
+
+    let partial = Manifest::read(&dir).unwrap();
+    assert!(!partial.complete && (2..6).contains(&partial.views.len()), "{} views", partial.views.len());
+    partial.verify(&dir).unwrap();
+    let on_disk: Vec<String> = std::fs::read_dir(dir.join("views"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.ends_with(".partial"))
+        .collect();
+    assert!(on_disk.len() >= partial.views.len());
+
+    // Without --resume the session is refused; with it, it completes and keeps what was there.
+    let _camera = SimulatedCameraProcess::start("RMVPKILL01", 6);
+    let refused = run(capture_command("RMVPKILL01", &dir, &[]));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--resume"));
+    let out = run(capture_command("RMVPKILL01", &dir, &["--resume"]));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let resumed = Manifest::read(&dir).unwrap();
+    assert!(resumed.complete);
+    assert_eq!(resumed.views.len(), 6);
+    assert_eq!(resumed.views[..partial.views.len()], partial.views[..], "views captured before stay identical");
+    assert_eq!(resumed.views.iter().map(|v| v.index).collect::<Vec<_>>(), (0..6).collect::<Vec<_>>());
+    resumed.verify(&dir).unwrap();
+    let mut names: Vec<String> =
+        std::fs::read_dir(dir.join("views")).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    names.sort();
+    assert_eq!(names, ["000", "001", "002", "003", "004", "005"]);
+}
