@@ -3,8 +3,8 @@
 
 use rmvp_capture::correction::subtract_dark;
 use rmvp_capture::session::manifest::Manifest;
-use rmvp_capture::FrameProcessor;
 use rmvp_capture::simulator::{SimulatedScene, SimulatorConfig};
+use rmvp_capture::FrameProcessor;
 use rmvp_dataset::layout::canonical::read_stokes;
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -93,7 +93,8 @@ fn residuals(view: &Path, truth: &rmvp_dataset::Stokes) -> (f64, f64, f64) {
             if (t1 * t1 + t2 * t2).sqrt() / t0 > 0.1 {
                 let (m1, m2) = (measured.s1.data()[i] as f64 / gain, measured.s2.data()[i] as f64 / gain);
                 let d = 0.5 * (m2.atan2(m1) - t2.atan2(t1));
-                let d = (d + std::f64::consts::FRAC_PI_2).rem_euclid(std::f64::consts::PI) - std::f64::consts::FRAC_PI_2;
+                let d =
+                    (d + std::f64::consts::FRAC_PI_2).rem_euclid(std::f64::consts::PI) - std::f64::consts::FRAC_PI_2;
                 aop_errors.push(d.abs().to_degrees());
             }
         }
@@ -147,7 +148,7 @@ fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() 
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("session");
     let mut camera = SimulatedCameraProcess::start("RMVPKILL01", 6);
-    let mut session = capture_command("RMVPKILL01", &dir, &[]).stderr(Stdio::piped()).spawn().unwrap();
+    let session = capture_command("RMVPKILL01", &dir, &[]).stderr(Stdio::piped()).spawn().unwrap();
     let start = Instant::now();
     while Manifest::read(&dir).map_or(0, |m| m.views.len()) < 2 {
         assert!(start.elapsed() < Duration::from_secs(120), "no progress");
@@ -182,8 +183,10 @@ fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() 
     assert_eq!(resumed.views[..partial.views.len()], partial.views[..], "views captured before stay identical");
     assert_eq!(resumed.views.iter().map(|v| v.index).collect::<Vec<_>>(), (0..6).collect::<Vec<_>>());
     resumed.verify(&dir).unwrap();
-    let mut names: Vec<String> =
-        std::fs::read_dir(dir.join("views")).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    let mut names: Vec<String> = std::fs::read_dir(dir.join("views"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
     names.sort();
     assert_eq!(names, ["000", "001", "002", "003", "004", "005"]);
 }

@@ -90,7 +90,13 @@ pub struct CameraSettings {
 
 impl Default for CameraSettings {
     fn default() -> Self {
-        Self { pixel_format: None, exposure_us: 20_000.0, gain_db: 0.0, frame_rate: None, trigger: TriggerSource::FreeRun }
+        Self {
+            pixel_format: None,
+            exposure_us: 20_000.0,
+            gain_db: 0.0,
+            frame_rate: None,
+            trigger: TriggerSource::FreeRun,
+        }
     }
 }
 
@@ -162,16 +168,12 @@ impl Camera {
     /// `selector`.
     pub fn open(selector: Option<&str>) -> Result<Self> {
         let name = selector.unwrap_or("first camera").to_string();
-        let id = match selector {
-            None => None,
-            Some(s) => Some(
-                list_devices()
-                    .into_iter()
-                    .find(|d| d.address == s || d.id == s || d.id.ends_with(&format!("-{s}")))
-                    .map(|d| d.id)
-                    .unwrap_or_else(|| s.to_string()),
-            ),
-        };
+        let id = selector.map(|s| {
+            list_devices()
+                .into_iter()
+                .find(|d| d.address == s || d.id == s || d.id.ends_with(&format!("-{s}")))
+                .map_or_else(|| s.to_string(), |d| d.id)
+        });
         let camera = aravis::Camera::new(id.as_deref()).map_err(|e| {
             Error::camera(&name, format!("cannot open ({e}); cameras found: {}", describe(&list_devices())))
         })?;
@@ -301,7 +303,10 @@ impl Camera {
         self.set_exposure(settings.exposure_us)?;
         self.set_float("Gain", settings.gain_db)?;
         if self.has_feature("AcquisitionFrameRateEnable") {
-            self.set_feature("AcquisitionFrameRateEnable", if settings.frame_rate.is_some() { "true" } else { "false" })?;
+            self.set_feature(
+                "AcquisitionFrameRateEnable",
+                if settings.frame_rate.is_some() { "true" } else { "false" },
+            )?;
         }
         if let Some(rate) = settings.frame_rate {
             self.set_float("AcquisitionFrameRate", rate)?;
@@ -318,7 +323,10 @@ impl Camera {
         }
         self.read_geometry()?;
         if self.format != format {
-            return Err(Error::camera(&self.name, format!("asked for {} but streams {}", format.name(), self.format.name())));
+            return Err(Error::camera(
+                &self.name,
+                format!("asked for {} but streams {}", format.name(), self.format.name()),
+            ));
         }
         Ok(format)
     }
@@ -336,8 +344,10 @@ impl Camera {
     /// Create the stream (if needed), queue the buffer pool and start acquiring.
     pub fn start(&mut self) -> Result<()> {
         if self.stream.is_none() {
-            let stream =
-                self.camera.create_stream().map_err(|e| Error::camera(&self.name, format!("cannot open a stream: {e}")))?;
+            let stream = self
+                .camera
+                .create_stream()
+                .map_err(|e| Error::camera(&self.name, format!("cannot open a stream: {e}")))?;
             let payload = self.camera.payload().map_err(|e| Error::camera(&self.name, format!("PayloadSize: {e}")))?;
             for _ in 0..STREAM_BUFFERS {
                 stream.push_buffer(aravis::Buffer::new_allocate(payload as usize));

@@ -137,7 +137,12 @@ impl SimulatedScene {
         let distance = framing_distance(&k, w, h, radius as f64, 0.85);
         let rig = Rig::Turntable { views: config.views.max(1), elevations: vec![10.0, 35.0] };
         let cameras = rig.cameras(k, w, h, distance, config.seed);
-        Ok(Self { object, env: EnvMap::procedural(), cameras, settings: Settings { spp: config.spp, seed: config.seed } })
+        Ok(Self {
+            object,
+            env: EnvMap::procedural(),
+            cameras,
+            settings: Settings { spp: config.spp, seed: config.seed },
+        })
     }
 
     /// Render pose `view`: linear RGB Stokes at 1224x1024 (the ground truth of that view).
@@ -271,7 +276,8 @@ impl Shared {
             if target < n && target != self.camera.read(register::TURNTABLE_REACHED) as usize {
                 self.ensure_rendered(target);
                 self.camera.write(register::TURNTABLE_REACHED, target as u32);
-            } else if let Some(next) = (0..n).map(|k| (target + k) % n).find(|&v| self.poses.lock().unwrap()[v].is_none())
+            } else if let Some(next) =
+                (0..n).map(|k| (target + k) % n).find(|&v| self.poses.lock().unwrap()[v].is_none())
             {
                 self.ensure_rendered(next);
                 continue;
@@ -298,10 +304,7 @@ unsafe extern "C" fn fill_frame(
 ) {
     // SAFETY: `data` is the `Shared` of the running `SimulatedCamera` (see `start`).
     let shared = unsafe { &*(data as *const Shared) };
-    let format = PIXEL_FORMATS
-        .iter()
-        .find(|(_, c)| *c == code)
-        .and_then(|(name, _)| PixelFormat::from_name(name).ok());
+    let format = PIXEL_FORMATS.iter().find(|(_, c)| *c == code).and_then(|(name, _)| PixelFormat::from_name(name).ok());
     let frame = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| format.map(|f| shared.frame(f))));
     // The allocated size is the payload (the received size stays 0 with a custom fill).
     // SAFETY: valid camera pointer.
@@ -351,15 +354,18 @@ impl SimulatedCamera {
                 format!("\t\t<EnumEntry Name=\"{n}\" NameSpace=\"Standard\">\n\t\t\t<Value>{code}</Value>\n\t\t</EnumEntry>\n")
             })
             .collect();
-        let xml = tempfile::Builder::new().prefix("rmvp-simulated-camera").suffix(".xml").tempfile().map_err(
-            |e| Error::Unsupported(format!("cannot write the simulated camera's GenICam file: {e}")),
-        )?;
+        let xml = tempfile::Builder::new()
+            .prefix("rmvp-simulated-camera")
+            .suffix(".xml")
+            .tempfile()
+            .map_err(|e| Error::Unsupported(format!("cannot write the simulated camera's GenICam file: {e}")))?;
         std::fs::write(xml.path(), XML_TEMPLATE.replace("{PIXEL_FORMATS}", &entries))
             .map_err(|e| rmvp_dataset::Error::io(xml.path(), e))?;
 
         let scene = SimulatedScene::new(config)?;
         let n = scene.cameras.len();
-        let c_interface = CString::new(config.interface.as_str()).map_err(|_| Error::Unsupported("interface".into()))?;
+        let c_interface =
+            CString::new(config.interface.as_str()).map_err(|_| Error::Unsupported("interface".into()))?;
         let c_serial = CString::new(config.serial.as_str()).map_err(|_| Error::Unsupported("serial".into()))?;
         let c_xml = CString::new(xml.path().to_string_lossy().as_bytes()).expect("no NUL in a temp path");
         // SAFETY: valid C strings; aravis copies them.
@@ -411,7 +417,11 @@ impl SimulatedCamera {
         // SAFETY: `shared` lives in the returned value, which stops the camera (and with it
         // the callbacks) before releasing it.
         unsafe {
-            ffi::arv_fake_camera_set_fill_pattern(shared.camera.0, Some(fill_frame), Arc::as_ptr(&shared) as *mut c_void);
+            ffi::arv_fake_camera_set_fill_pattern(
+                shared.camera.0,
+                Some(fill_frame),
+                Arc::as_ptr(&shared) as *mut c_void,
+            );
         }
         let worker = shared.clone();
         let turntable = std::thread::Builder::new()

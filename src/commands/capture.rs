@@ -92,7 +92,8 @@ pub fn run(args: Args) -> Result<()> {
         Some("turntable") => Positioning::Turntable,
         Some(other) => bail!("--mode {other}: expected interactive, timed, trigger or turntable"),
     };
-    let trigger = if positioning == Positioning::HardwareTrigger { TriggerSource::Line0 } else { TriggerSource::FreeRun };
+    let trigger =
+        if positioning == Positioning::HardwareTrigger { TriggerSource::Line0 } else { TriggerSource::FreeRun };
     let preview = args.preview.map(|_| Arc::new(Preview::default()));
     let _server = match (args.preview, &preview) {
         (Some(address), Some(preview)) => {

@@ -121,8 +121,8 @@ impl Manifest {
     pub fn read(dir: &Path) -> Result<Self> {
         let path = dir.join(MANIFEST_FILE);
         let text = std::fs::read_to_string(&path).map_err(|e| rmvp_dataset::Error::io(&path, e))?;
-        let manifest: Manifest = serde_json::from_str(&text)
-            .map_err(|e| Error::in_file(&path, format!("not a session manifest: {e}")))?;
+        let manifest: Manifest =
+            serde_json::from_str(&text).map_err(|e| Error::in_file(&path, format!("not a session manifest: {e}")))?;
         if manifest.format != MANIFEST_FORMAT {
             return Err(Error::in_file(&path, format!("format {:?}, expected {MANIFEST_FORMAT:?}", manifest.format)));
         }

@@ -32,6 +32,7 @@ use positioning::{LastView, Positioning};
 use rmvp_dataset::io::{png, write_bytes_atomically};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
@@ -138,11 +139,22 @@ pub fn capture(camera: &mut Camera, options: &SessionOptions) -> Result<SessionR
     let last = Arc::new(Mutex::new(LastView { done: start, ..LastView::default() }));
     let (to_processing, from_acquisition) = sync_channel::<GrabbedView>(QUEUE_DEPTH);
     let (to_writer, from_processing) = sync_channel::<ProcessedView>(QUEUE_DEPTH);
+    // Set when processing or writing fails, so that acquisition stops before the next view.
+    let failed = AtomicBool::new(false);
     let (acquired, processed, written) = std::thread::scope(|scope| {
         let frame_format = camera.frame_format();
-        let processing = scope.spawn(move || process_views(from_acquisition, to_writer, frame_format, options, &darks));
-        let writing = scope.spawn(|| write_views(from_processing, &mut manifest, options, &last, &bar));
-        let acquired = acquire_views(camera, to_processing, options, start, &last);
+        let failed = &failed;
+        let flag = |result: Result<()>| {
+            if result.is_err() {
+                failed.store(true, Ordering::Relaxed);
+            }
+            result
+        };
+        let processing =
+            scope.spawn(move || flag(process_views(from_acquisition, to_writer, frame_format, options, &darks)));
+        let (manifest, last, bar) = (&mut manifest, &last, &bar);
+        let writing = scope.spawn(move || flag(write_views(from_processing, manifest, options, last, bar)));
+        let acquired = acquire_views(camera, to_processing, options, start, last, failed);
         (acquired, processing.join().expect("processing thread"), writing.join().expect("writing thread"))
     });
     bar.finish();
@@ -156,12 +168,7 @@ pub fn capture(camera: &mut Camera, options: &SessionOptions) -> Result<SessionR
             views_captured: complete - start,
             dropped_frames: dropped,
         }),
-        Err(e) => Err(Error::Session {
-            source: Box::new(e),
-            dir: dir.to_path_buf(),
-            complete,
-            planned: options.views,
-        }),
+        Err(e) => Err(Error::Session { source: Box::new(e), dir: dir.to_path_buf(), complete, planned: options.views }),
     }
 }
 
@@ -175,15 +182,19 @@ fn open_manifest(
 ) -> Result<Manifest> {
     let dir = options.dir.as_path();
     let (_, width, height) = camera.frame_format();
-    let features: BTreeMap<String, String> = RECORDED_FEATURES
-        .iter()
-        .filter_map(|f| camera.feature(f).ok().map(|v| (f.to_string(), v)))
-        .collect();
+    let features: BTreeMap<String, String> =
+        RECORDED_FEATURES.iter().filter_map(|f| camera.feature(f).ok().map(|v| (f.to_string(), v))).collect();
     let stokes_unit = if options.exposures_us.len() > 1 {
         let shortest = options.exposures_us.iter().copied().fold(f64::INFINITY, f64::min);
-        format!("full scale of the HDR-merged frame: full scale at the shortest exposure, {shortest} us, gain {} dB", settings.gain_db)
+        format!(
+            "full scale of the HDR-merged frame: full scale at the shortest exposure, {shortest} us, gain {} dB",
+            settings.gain_db
+        )
     } else {
-        format!("full scale of the {}-bit frame at {} us, gain {} dB", format.bits, options.exposures_us[0], settings.gain_db)
+        format!(
+            "full scale of the {}-bit frame at {} us, gain {} dB",
+            format.bits, options.exposures_us[0], settings.gain_db
+        )
     };
     let fresh = Manifest {
         format: MANIFEST_FORMAT.into(),
@@ -227,7 +238,10 @@ fn open_manifest(
     let mut old = Manifest::read(dir)?;
     old.verify(dir)?;
     let mismatch = |what: &str, was: String, now: String| {
-        Error::in_file(dir, format!("was captured with {what} {was}; this run has {now}: resume with the same camera and options"))
+        Error::in_file(
+            dir,
+            format!("was captured with {what} {was}; this run has {now}: resume with the same camera and options"),
+        )
     };
     if old.object != fresh.object {
         return Err(mismatch("object", old.object, fresh.object));
@@ -258,7 +272,7 @@ fn clean_incomplete(dir: &Path, manifest: &Manifest) -> Result<()> {
     for entry in entries.flatten() {
         let name = entry.file_name().to_string_lossy().into_owned();
         if !manifest.views.iter().any(|v| v.name == name) {
-            std::fs::remove_dir_all(entry.path()).map_err(|e| rmvp_dataset::Error::io(&entry.path(), e))?;
+            std::fs::remove_dir_all(entry.path()).map_err(|e| rmvp_dataset::Error::io(entry.path(), e))?;
         }
     }
     Ok(())
@@ -294,10 +308,8 @@ fn dark_frames(
         camera.start()?;
         let frames = grab_frames(camera, options, options.dark_frames, &mut dropped)?;
         camera.stop()?;
-        let frames: Vec<RawFrame> = frames
-            .iter()
-            .map(|b| RawFrame::decode(b, format, width, height, camera.name()))
-            .collect::<Result<_>>()?;
+        let frames: Vec<RawFrame> =
+            frames.iter().map(|b| RawFrame::decode(b, format, width, height, camera.name())).collect::<Result<_>>()?;
         let mean = mean_frame(&frames)?;
         let relative = format!("dark/dark_{exposure}us.png");
         png::write_png_u16(&dir.join(&relative), &mean.pixels)?;
@@ -315,7 +327,12 @@ fn dark_frames(
 
 /// Grab `count` complete frames (after one settling frame when free running): frames the
 /// stream loses, or that arrive short, are counted in `dropped` and grabbed again.
-fn grab_frames(camera: &mut Camera, options: &SessionOptions, count: usize, dropped: &mut usize) -> Result<Vec<Vec<u8>>> {
+fn grab_frames(
+    camera: &mut Camera,
+    options: &SessionOptions,
+    count: usize,
+    dropped: &mut usize,
+) -> Result<Vec<Vec<u8>>> {
     let (format, width, height) = camera.frame_format();
     let expected = format.frame_bytes(width, height);
     let free_running = options.camera.trigger == TriggerSource::FreeRun;
@@ -356,9 +373,13 @@ fn acquire_views(
     options: &SessionOptions,
     start: usize,
     last: &Mutex<LastView>,
+    failed: &AtomicBool,
 ) -> Result<usize> {
     let mut dropped_total = 0;
     for index in start..options.views {
+        if failed.load(Ordering::Relaxed) {
+            break; // the failing stage reports its error
+        }
         let status = last.lock().expect("last view").clone();
         options.positioning.prepare(camera, index, options.views, &status)?;
         let captured_at = utc_now();
@@ -471,8 +492,11 @@ fn write_views(
         });
         manifest.complete = manifest.views.len() >= manifest.views_planned;
         manifest.write(dir)?;
-        *last.lock().expect("last view") =
-            LastView { done: manifest.views.len(), saturated_fraction: view.saturated_fraction, mean_dop: view.mean_dop };
+        *last.lock().expect("last view") = LastView {
+            done: manifest.views.len(),
+            saturated_fraction: view.saturated_fraction,
+            mean_dop: view.mean_dop,
+        };
         if let Some(preview) = &options.preview {
             preview.update(&view.processed, &name, manifest.views.len(), manifest.views_planned);
         }

@@ -60,7 +60,12 @@ impl Positioning {
             )),
             Positioning::Timed(pause) => {
                 if index > 0 {
-                    eprintln!("{}moving to view {}/{total} for {:.1} s", status_line(last, index), index + 1, pause.as_secs_f64());
+                    eprintln!(
+                        "{}moving to view {}/{total} for {:.1} s",
+                        status_line(last, index),
+                        index + 1,
+                        pause.as_secs_f64()
+                    );
                     std::thread::sleep(*pause);
                 }
                 Ok(())
@@ -102,7 +107,9 @@ fn prompt(message: &str) -> Result<()> {
     eprintln!("{message}");
     let mut line = String::new();
     match std::io::stdin().lock().read_line(&mut line) {
-        Ok(0) => Err(Error::Unsupported("standard input closed while waiting for the operator (use --mode timed or turntable)".into())),
+        Ok(0) => Err(Error::Unsupported(
+            "standard input closed while waiting for the operator (use --mode timed or turntable)".into(),
+        )),
         Ok(_) => Ok(()),
         Err(e) => Err(Error::Unsupported(format!("reading the operator's Enter: {e}"))),
     }
@@ -112,7 +119,10 @@ fn prompt(message: &str) -> Result<()> {
 fn turn_to(camera: &Camera, index: usize) -> Result<()> {
     let positions = camera.integer("TurntablePositions")? as usize;
     if index >= positions {
-        return Err(Error::camera(camera.name(), format!("the turntable has {positions} positions, view {index} asked")));
+        return Err(Error::camera(
+            camera.name(),
+            format!("the turntable has {positions} positions, view {index} asked"),
+        ));
     }
     camera.set_integer("TurntablePosition", index as i64)?;
     let start = Instant::now();
