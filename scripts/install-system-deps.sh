@@ -9,6 +9,9 @@ packages=(
   pkg-config
   libopencv-dev     # demosaicing (opencv crate, links the system OpenCV 4.6)
   clang libclang-dev # the opencv crate generates its bindings with libclang at build time
+  libaravis-dev      # GenICam cameras (aravis 0.8: USB3 Vision, GigE Vision, the simulated camera)
+  libusb-1.0-0-dev   # required by aravis-0.8.pc
+  chromium           # headless browser for the live-preview page test
 )
 if [ "${1:-}" = bench ]; then
   packages+=(python3-numpy python3-opencv) # same OpenCV 4.6 as the Rust side

@@ -344,6 +344,11 @@ impl Camera {
     /// Create the stream (if needed), queue the buffer pool and start acquiring.
     pub fn start(&mut self) -> Result<()> {
         if self.stream.is_none() {
+            if self.camera.is_gv_device() {
+                // The largest packet the path carries (jumbo frames, 64 KiB on loopback): fewer
+                // packets per frame. A camera that cannot tell keeps its default.
+                let _ = self.camera.gv_auto_packet_size();
+            }
             let stream = self
                 .camera
                 .create_stream()

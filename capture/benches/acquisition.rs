@@ -1,0 +1,67 @@
+//! Sustained acquisition from the simulated camera at full resolution (2448x2048
+//! BayerRGPolarized12p, GigE Vision on loopback, noise-free frames so that the camera side
+//! only copies): frames per second and dropped frames for streaming alone, and for streaming
+//! with every frame decoded and processed to Stokes, AoP and DoP on a second thread (bounded
+//! queue of two frames). Run with `cargo bench -p rmvp-capture --bench acquisition`.
+
+use rmvp_capture::camera::{Camera, CameraSettings, Grab};
+use rmvp_capture::simulator::{SimulatedCamera, SimulatorConfig, SENSOR_HEIGHT, SENSOR_WIDTH};
+use rmvp_capture::{FrameProcessor, ProcessedFrame, RawFrame};
+use std::sync::mpsc::sync_channel;
+use std::time::{Duration, Instant};
+
+const SECONDS: f64 = 8.0;
+
+fn main() {
+    if !std::env::args().any(|a| a == "--bench") {
+        return; // run by `cargo test --all-targets` (no `--bench`): measure only under `cargo bench`
+    }
+    let config = SimulatorConfig { serial: "RMVPBENCH1".into(), views: 1, noise: false, ..SimulatorConfig::default() };
+    let _sim = SimulatedCamera::start(&config).expect("simulated camera");
+    let mut camera = Camera::open(Some("RMVPBENCH1")).expect("open");
+    let settings = CameraSettings { frame_rate: Some(75.0), exposure_us: 5_000.0, ..CameraSettings::default() };
+    let format = camera.configure(&settings).expect("configure");
+    println!("{} at {SENSOR_WIDTH}x{SENSOR_HEIGHT}, asked for 75 frames/s, {SECONDS} s per run", format.name());
+
+    for process in [false, true] {
+        camera.start().expect("start");
+        let (to_worker, from_camera) = sync_channel::<Vec<u8>>(2);
+        let worker = std::thread::spawn(move || {
+            let processor = FrameProcessor::default();
+            let (mut raw, mut out): (Option<RawFrame>, _) = (None, ProcessedFrame::default());
+            let mut n = 0usize;
+            for bytes in from_camera {
+                if process {
+                    let frame = raw.get_or_insert_with(|| {
+                        RawFrame::decode(&bytes, format, SENSOR_WIDTH, SENSOR_HEIGHT, "bench").unwrap()
+                    });
+                    frame.decode_from(&bytes, format, SENSOR_WIDTH, SENSOR_HEIGHT, "bench").unwrap();
+                    processor.process_into(frame, &mut out).unwrap();
+                }
+                n += 1;
+            }
+            n
+        });
+        let (mut frames, mut dropped, mut timeouts) = (0usize, 0usize, 0usize);
+        let start = Instant::now();
+        while start.elapsed().as_secs_f64() < SECONDS {
+            match camera.grab(Duration::from_secs(2)).expect("grab") {
+                Grab::Frame(bytes) => {
+                    frames += 1;
+                    to_worker.send(bytes).expect("worker");
+                }
+                Grab::Dropped(_) => dropped += 1,
+                Grab::Timeout => timeouts += 1,
+            }
+        }
+        let elapsed = start.elapsed().as_secs_f64();
+        drop(to_worker);
+        let handled = worker.join().expect("worker");
+        camera.stop().expect("stop");
+        println!(
+            "{:<38} {:6.1} frames/s ({frames} frames in {elapsed:.1} s, {dropped} dropped, {timeouts} time-outs, {handled} handled)",
+            if process { "stream + decode + Stokes/AoP/DoP" } else { "stream only (grab and copy)" },
+            frames as f64 / elapsed
+        );
+    }
+}
