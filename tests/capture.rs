@@ -6,7 +6,7 @@ use rmvp_capture::session::manifest::Manifest;
 use rmvp_capture::simulator::{SimulatedScene, SimulatorConfig};
 use rmvp_capture::FrameProcessor;
 use rmvp_dataset::layout::canonical::read_stokes;
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Write};
 use std::path::Path;
 use std::process::{Child, Command, Output, Stdio};
 use std::sync::Mutex;
@@ -47,7 +47,10 @@ impl Drop for SimulatedCameraProcess {
 
 fn capture_command(serial: &str, dir: &Path, extra: &[&str]) -> Command {
     let mut command = Command::new(env!("CARGO_BIN_EXE_rmvp"));
-    command.args(["capture", "--camera", serial, "--object", "spot", "--views", "6", "-o", dir.to_str().unwrap()]);
+    command.args(["capture", "--camera", serial, "--object", "spot", "-o", dir.to_str().unwrap()]);
+    if !extra.contains(&"--views") {
+        command.args(["--views", "6"]);
+    }
     command.args(["--frame-timeout", "2"]).args(extra);
     command
 }
@@ -58,8 +61,8 @@ fn run(mut command: Command) -> Output {
 
 /// The Stokes images the session would hold without noise: the rendered truth through the
 /// noise-free sensor, black level removed, and the same processing.
-fn noise_free_capture(truth: &rmvp_dataset::Stokes) -> rmvp_dataset::Stokes {
-    let sensor = SimulatedScene::sensor(20_000.0, 0.0, 12).noise_free();
+fn noise_free_capture(truth: &rmvp_dataset::Stokes, exposure_us: f64) -> rmvp_dataset::Stokes {
+    let sensor = SimulatedScene::sensor(exposure_us, 0.0, 12).noise_free();
     let mut raw = sensor.digitize(&sensor.electrons(truth), 0, 0);
     let black = sensor.dark_frame(truth.s0.width(), truth.s0.height(), 0);
     subtract_dark(&mut raw, &black).unwrap();
@@ -73,7 +76,7 @@ fn noise_free_capture(truth: &rmvp_dataset::Stokes) -> rmvp_dataset::Stokes {
 /// (degrees) against the rendered truth where it is polarized (DoP > 0.1).
 fn residuals(view: &Path, truth: &rmvp_dataset::Stokes) -> (f64, f64, f64) {
     let measured = read_stokes(&view.join("view_stokes.exr")).unwrap();
-    let reference = noise_free_capture(truth);
+    let reference = noise_free_capture(truth, 20_000.0);
     let sensor = SimulatedScene::sensor(20_000.0, 0.0, 12);
     let gain = sensor.stokes_gain() as f64;
     let (mut z, mut aop_errors) = (Vec::new(), Vec::new());
@@ -189,4 +192,83 @@ fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() 
         .collect();
     names.sort();
     assert_eq!(names, ["000", "001", "002", "003", "004", "005"]);
+}
+
+#[test]
+fn hdr_brackets_recover_highlights_the_long_exposure_clips() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("session");
+    let _camera = SimulatedCameraProcess::start("RMVPHDR01", 2);
+    let args = ["--views", "2", "--hdr", "4000,120000", "--average", "2", "--dark", "2"];
+    let out = run(capture_command("RMVPHDR01", &dir, &args));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let manifest = Manifest::read(&dir).unwrap();
+    assert_eq!(manifest.views[0].frames, 4);
+    assert_eq!(manifest.dark.len(), 2);
+    assert!(manifest.settings.stokes_unit.contains("shortest exposure, 4000 us"), "{}", manifest.settings.stokes_unit);
+
+    let truth = SimulatedScene::new(&SimulatorConfig { views: 2, ..SimulatorConfig::default() }).unwrap().render(0);
+    let measured = read_stokes(&dir.join("views/000/view_stokes.exr")).unwrap();
+    // HDR Stokes are in units of the shortest exposure's full scale: compare with the noise-free
+    // capture at 4 ms, which clips nowhere.
+    let reference = noise_free_capture(&truth, 4000.0);
+    // Stokes pixels whose 2x2 polarizer cell would be far beyond full scale (1.5x) at 120 ms:
+    // predicted from the noise-free 4-ms frame (30 times less light).
+    let short = SimulatedScene::sensor(4000.0, 0.0, 12).noise_free();
+    let short_raw = short.digitize(&short.electrons(&truth), 0, 0);
+    let (w, _) = truth.s0.size();
+    let saturated = |x: usize, y: usize| {
+        (2 * x..2 * x + 2).any(|sx| {
+            (2 * y..2 * y + 2).any(|sy| {
+                let v = short_raw.pixels.data()[sy * 2 * w + sx] as f64 - short.dark_offset as f64;
+                30.0 * v > 1.5 * 4095.0
+            })
+        })
+    };
+    let (mut clipped, mut unclipped) = (Vec::new(), Vec::new());
+    for (i, &t) in truth.s0.data().iter().enumerate() {
+        if t < 0.05 {
+            continue;
+        }
+        let r = reference.s0.data()[i] as f64;
+        let error = (measured.s0.data()[i] as f64 - r).abs() / r;
+        let pixel = i / 3;
+        if saturated(pixel % w, pixel / w) {
+            clipped.push(error);
+        } else {
+            unclipped.push(error);
+        }
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    assert!(clipped.len() > 500, "{} pixels clip at 120 ms", clipped.len());
+    let (c, u) = (median(&mut clipped), median(&mut unclipped));
+    eprintln!("HDR S0 relative error: median {u:.4} where 120 ms is fine, {c:.4} where it clips");
+    // Where 120 ms clips, only the two 4-ms frames measure; elsewhere the long exposure
+    // dominates. Merging clipped samples as if they were not would underestimate by far more.
+    assert!(u < 0.02 && c < 0.04, "HDR S0 relative error: {u:.4} unclipped, {c:.4} clipped");
+}
+
+#[test]
+fn the_operator_presses_enter_between_views_and_a_closed_stdin_stops_cleanly() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("session");
+    let _camera = SimulatedCameraProcess::start("RMVPENTER1", 3);
+    let mut command = capture_command("RMVPENTER1", &dir, &["--views", "3", "--mode", "interactive"]);
+    let mut child = command.stdin(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    // Enter for two views, then the operator leaves (stdin closed).
+    child.stdin.take().unwrap().write_all(b"\n\n").unwrap();
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("view 1/3: place the camera and press Enter"), "{stderr}");
+    assert!(stderr.contains("1 views done; last:") && stderr.contains("saturated, mean DoP"), "{stderr}");
+    assert!(stderr.contains("standard input closed") && stderr.contains("2 of 3 views complete"), "{stderr}");
+    let manifest = Manifest::read(&dir).unwrap();
+    assert_eq!((manifest.views.len(), manifest.settings.positioning.as_str()), (2, "interactive"));
+    manifest.verify(&dir).unwrap();
 }

@@ -28,10 +28,10 @@ pub enum Error {
         message: String,
     },
     /// A session that stopped early: the cause, and where the session stands.
-    #[error("{source}\nsession {dir}: {complete} of {planned} views complete and saved; fix the cause and run the same command with --resume to continue", dir = dir.display())]
+    #[error("{cause}\nsession {dir}: {complete} of {planned} views complete and saved; fix the cause and run the same command with --resume to continue", dir = dir.display())]
     Session {
         /// What stopped it.
-        source: Box<Error>,
+        cause: Box<Error>,
         /// Session folder.
         dir: PathBuf,
         /// Views complete.

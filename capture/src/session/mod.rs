@@ -168,7 +168,7 @@ pub fn capture(camera: &mut Camera, options: &SessionOptions) -> Result<SessionR
             views_captured: complete - start,
             dropped_frames: dropped,
         }),
-        Err(e) => Err(Error::Session { source: Box::new(e), dir: dir.to_path_buf(), complete, planned: options.views }),
+        Err(e) => Err(Error::Session { cause: Box::new(e), dir: dir.to_path_buf(), complete, planned: options.views }),
     }
 }
 
@@ -379,6 +379,12 @@ fn acquire_views(
     for index in start..options.views {
         if failed.load(Ordering::Relaxed) {
             break; // the failing stage reports its error
+        }
+        if options.positioning == Positioning::Interactive {
+            // The operator judges the view just taken (saturation, DoP) before moving on.
+            while last.lock().expect("last view").done < index && !failed.load(Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(20));
+            }
         }
         let status = last.lock().expect("last view").clone();
         options.positioning.prepare(camera, index, options.views, &status)?;
