@@ -20,8 +20,13 @@ struct SimulatedCameraProcess(Child);
 
 impl SimulatedCameraProcess {
     fn start(serial: &str, views: usize) -> Self {
+        Self::start_with(serial, views, &[])
+    }
+
+    fn start_with(serial: &str, views: usize, extra: &[&str]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_rmvp"))
             .args(["simulate-camera", "--serial", serial, "--views", &views.to_string()])
+            .args(extra)
             .stderr(Stdio::piped())
             .spawn()
             .expect("rmvp runs");
@@ -271,4 +276,26 @@ fn the_operator_presses_enter_between_views_and_a_closed_stdin_stops_cleanly() {
     let manifest = Manifest::read(&dir).unwrap();
     assert_eq!((manifest.views.len(), manifest.settings.positioning.as_str()), (2, "interactive"));
     manifest.verify(&dir).unwrap();
+}
+
+#[test]
+fn frames_lost_on_the_link_are_counted_and_grabbed_again() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("session");
+    let _camera = SimulatedCameraProcess::start_with("RMVPLOSS01", 2, &["--lost-packets", "0.00008", "--noise-free"]);
+    let out = run(capture_command("RMVPLOSS01", &dir, &["--views", "2", "--average", "8"]));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let manifest = Manifest::read(&dir).unwrap();
+    let dropped: usize = manifest.views.iter().map(|v| v.dropped_frames).sum();
+    eprintln!("{dropped} frames dropped and grabbed again");
+    assert!(dropped > 0, "no frame was lost at a 0.008 % packet loss");
+    assert!(stderr.contains(&format!("{dropped} dropped frames grabbed again")), "{stderr}");
+    // Every kept frame is complete: noise-free frames of one pose are identical.
+    let raw = dir.join("views/001/raw");
+    let first = std::fs::read(raw.join("20000us_0.raw")).unwrap();
+    for k in 1..8 {
+        assert!(std::fs::read(raw.join(format!("20000us_{k}.raw"))).unwrap() == first, "frame {k} differs");
+    }
 }

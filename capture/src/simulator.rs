@@ -94,6 +94,9 @@ pub struct SimulatorConfig {
     pub pixel_formats: Vec<String>,
     /// Shot and read noise on (off: every frame of a pose is the same, which is also fastest).
     pub noise: bool,
+    /// Fraction of GVSP packets the camera drops on purpose (0 to 1): frames then arrive
+    /// incomplete, as on a congested link.
+    pub lost_packet_ratio: f64,
 }
 
 impl Default for SimulatorConfig {
@@ -107,6 +110,7 @@ impl Default for SimulatorConfig {
             seed: 0,
             pixel_formats: PIXEL_FORMATS.iter().map(|(n, _)| n.to_string()).collect(),
             noise: true,
+            lost_packet_ratio: 0.0,
         }
     }
 }
@@ -376,6 +380,16 @@ impl SimulatedCamera {
                 format!("simulated camera on {}", config.interface),
                 "could not open the GigE Vision ports (is another simulated camera running there?)",
             ));
+        }
+        if config.lost_packet_ratio > 0.0 {
+            // SAFETY: `gv` is a valid GObject; the property is aravis's GigE fake camera's own.
+            let object: aravis::glib::Object =
+                unsafe { aravis::glib::translate::from_glib_none(gv.cast::<aravis::glib::gobject_ffi::GObject>()) };
+            aravis::glib::prelude::ObjectExt::set_property(
+                &object,
+                "gvsp-lost-ratio",
+                config.lost_packet_ratio.clamp(0.0, 1.0),
+            );
         }
         // SAFETY: `gv` is valid; the fake camera belongs to it.
         let camera = FakeCameraPtr(unsafe { ffi::arv_gv_fake_camera_get_fake_camera(gv) });

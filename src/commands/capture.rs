@@ -162,6 +162,9 @@ pub struct SimulateCameraArgs {
     /// Seed of the views and the noise.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Fraction of stream packets to drop on purpose (frames then arrive incomplete).
+    #[arg(long, default_value_t = 0.0)]
+    pub lost_packets: f64,
 }
 
 /// Run a simulated camera until killed.
@@ -174,6 +177,7 @@ pub fn simulate_camera(args: SimulateCameraArgs) -> Result<()> {
         spp: args.spp,
         seed: args.seed,
         noise: !args.noise_free,
+        lost_packet_ratio: args.lost_packets,
         ..SimulatorConfig::default()
     };
     if !args.pixel_formats.is_empty() {
