@@ -92,7 +92,7 @@ impl Positioning {
 }
 
 fn status_line(last: &LastView, index: usize) -> String {
-    if index == 0 {
+    if index == 0 || last.done == 0 {
         return String::new();
     }
     format!(
