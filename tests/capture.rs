@@ -7,9 +7,9 @@ use rmvp_capture::simulator::{SimulatedScene, SimulatorConfig};
 use rmvp_capture::FrameProcessor;
 use rmvp_dataset::layout::canonical::read_stokes;
 use std::io::{BufRead, BufReader, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
-use std::sync::Mutex;
+use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 /// One simulated camera per address: tests take turns.
@@ -19,11 +19,7 @@ static LOOPBACK: Mutex<()> = Mutex::new(());
 struct SimulatedCameraProcess(Child);
 
 impl SimulatedCameraProcess {
-    fn start(serial: &str, views: usize) -> Self {
-        Self::start_with(serial, views, &[])
-    }
-
-    fn start_with(serial: &str, views: usize, extra: &[&str]) -> Self {
+    fn start(serial: &str, views: usize, extra: &[&str]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_rmvp"))
             .args(["simulate-camera", "--serial", serial, "--views", &views.to_string()])
             .args(extra)
@@ -47,6 +43,25 @@ impl SimulatedCameraProcess {
 impl Drop for SimulatedCameraProcess {
     fn drop(&mut self) {
         self.kill();
+    }
+}
+
+/// What each test starts from: its turn on the loopback address, a simulated camera process
+/// (extra `rmvp simulate-camera` arguments) and an empty session folder. Fields drop in order:
+/// the camera stops before the folder goes and the turn is passed on.
+struct Rig {
+    dir: PathBuf,
+    camera: SimulatedCameraProcess,
+    _tmp: tempfile::TempDir,
+    _turn: MutexGuard<'static, ()>,
+}
+
+impl Rig {
+    fn new(serial: &str, views: usize, camera_args: &[&str]) -> Self {
+        let turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+        let tmp = tempfile::tempdir().unwrap();
+        let camera = SimulatedCameraProcess::start(serial, views, camera_args);
+        Self { dir: tmp.path().join("session"), camera, _tmp: tmp, _turn: turn }
     }
 }
 
@@ -117,10 +132,8 @@ fn residuals(view: &Path, truth: &rmvp_dataset::Stokes) -> (f64, f64, f64) {
 
 #[test]
 fn a_six_view_session_matches_the_renderer_within_the_noise() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path().join("session");
-    let _camera = SimulatedCameraProcess::start("RMVPSESS01", 6);
+    let rig = Rig::new("RMVPSESS01", 6, &[]);
+    let dir = rig.dir.clone();
     // Dark frames (the simulated rig's lens cap) remove the black level.
     let out = run(capture_command("RMVPSESS01", &dir, &["--dark", "4"]));
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -152,17 +165,15 @@ fn a_six_view_session_matches_the_renderer_within_the_noise() {
 
 #[test]
 fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path().join("session");
-    let mut camera = SimulatedCameraProcess::start("RMVPKILL01", 6);
+    let mut rig = Rig::new("RMVPKILL01", 6, &[]);
+    let dir = rig.dir.clone();
     let session = capture_command("RMVPKILL01", &dir, &[]).stderr(Stdio::piped()).spawn().unwrap();
     let start = Instant::now();
     while Manifest::read(&dir).map_or(0, |m| m.views.len()) < 2 {
         assert!(start.elapsed() < Duration::from_secs(120), "no progress");
         std::thread::sleep(Duration::from_millis(20));
     }
-    camera.kill();
+    rig.camera.kill();
     let out = session.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
@@ -180,7 +191,7 @@ fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() 
     assert!(on_disk.len() >= partial.views.len());
 
     // Without --resume the session is refused; with it, it completes and keeps what was there.
-    let _camera = SimulatedCameraProcess::start("RMVPKILL01", 6);
+    rig.camera = SimulatedCameraProcess::start("RMVPKILL01", 6, &[]);
     let refused = run(capture_command("RMVPKILL01", &dir, &[]));
     assert!(String::from_utf8_lossy(&refused.stderr).contains("--resume"));
     let out = run(capture_command("RMVPKILL01", &dir, &["--resume"]));
@@ -201,10 +212,8 @@ fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() 
 
 #[test]
 fn hdr_brackets_recover_highlights_the_long_exposure_clips() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path().join("session");
-    let _camera = SimulatedCameraProcess::start("RMVPHDR01", 2);
+    let rig = Rig::new("RMVPHDR01", 2, &[]);
+    let dir = rig.dir.clone();
     let args = ["--views", "2", "--hdr", "4000,120000", "--average", "2", "--dark", "2"];
     let out = run(capture_command("RMVPHDR01", &dir, &args));
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -259,10 +268,8 @@ fn hdr_brackets_recover_highlights_the_long_exposure_clips() {
 
 #[test]
 fn the_operator_presses_enter_between_views_and_a_closed_stdin_stops_cleanly() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path().join("session");
-    let _camera = SimulatedCameraProcess::start("RMVPENTER1", 3);
+    let rig = Rig::new("RMVPENTER1", 3, &[]);
+    let dir = rig.dir.clone();
     let mut command = capture_command("RMVPENTER1", &dir, &["--views", "3", "--mode", "interactive"]);
     let mut child = command.stdin(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
     // Enter for two views, then the operator leaves (stdin closed).
@@ -280,10 +287,8 @@ fn the_operator_presses_enter_between_views_and_a_closed_stdin_stops_cleanly() {
 
 #[test]
 fn frames_lost_on_the_link_are_counted_and_grabbed_again() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path().join("session");
-    let _camera = SimulatedCameraProcess::start_with("RMVPLOSS01", 2, &["--lost-packets", "0.00012", "--noise-free"]);
+    let rig = Rig::new("RMVPLOSS01", 2, &["--lost-packets", "0.00012", "--noise-free"]);
+    let dir = rig.dir.clone();
     let out = run(capture_command("RMVPLOSS01", &dir, &["--views", "2", "--average", "8"]));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");

@@ -10,7 +10,7 @@ use axum::http::{header, StatusCode};
 use axum::response::{Html, IntoResponse, Response};
 use axum::routing::get;
 use rmvp_dataset::io::png::encode_png_u8;
-use rmvp_dataset::{visualize, Image};
+use rmvp_dataset::visualize;
 use serde::Serialize;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
@@ -54,7 +54,7 @@ impl Preview {
             visualize::aop_picture(&frame.aop, &frame.dop, None),
             visualize::gray_ramp(&frame.dop, 0.0, 1.0),
         ]
-        .map(|p| encode_png_u8(&shrink(&p)).unwrap_or_default());
+        .map(|p| encode_png_u8(&visualize::downsample(&p, p.width().div_ceil(PREVIEW_WIDTH))).unwrap_or_default());
         let full = ((1u32 << frame.bits) - 1) as f64;
         let mut histogram = vec![0u64; HISTOGRAM_BINS];
         let mut saturated = 0u64;
@@ -83,32 +83,6 @@ impl Preview {
     pub fn state(&self) -> PreviewState {
         self.state.lock().expect("preview state").clone()
     }
-}
-
-/// Shrink by the smallest whole factor that fits [`PREVIEW_WIDTH`] (box filter).
-fn shrink(image: &Image<u8>) -> Image<u8> {
-    let (w, h) = image.size();
-    let c = image.channels();
-    let f = w.div_ceil(PREVIEW_WIDTH).max(1);
-    if f == 1 {
-        return image.clone();
-    }
-    let (ow, oh) = (w / f, h / f);
-    let mut out = Image::new(ow, oh, c);
-    for y in 0..oh {
-        for x in 0..ow {
-            for k in 0..c {
-                let mut sum = 0u32;
-                for dy in 0..f {
-                    for dx in 0..f {
-                        sum += image.data()[((y * f + dy) * w + x * f + dx) * c + k] as u32;
-                    }
-                }
-                out.data_mut()[(y * ow + x) * c + k] = (sum / (f * f) as u32) as u8;
-            }
-        }
-    }
-    out
 }
 
 /// A running preview server; it stops when dropped.

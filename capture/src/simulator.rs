@@ -136,9 +136,7 @@ impl SimulatedScene {
         let object = Object::new(&mesh, Interface::Dielectric(1.5), Lobes::Plastic)?;
         let (w, h) = ((SENSOR_WIDTH / 2) as u32, (SENSOR_HEIGHT / 2) as u32);
         let k = rig_intrinsics(w, h);
-        let radius =
-            mesh.positions.iter().map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()).fold(0.0f32, f32::max);
-        let distance = framing_distance(&k, w, h, radius as f64, 0.85);
+        let distance = framing_distance(&k, w, h, mesh.radius() as f64, 0.85);
         let rig = Rig::Turntable { views: config.views.max(1), elevations: vec![10.0, 35.0] };
         let cameras = rig.cameras(k, w, h, distance, config.seed);
         Ok(Self {

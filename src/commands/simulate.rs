@@ -96,8 +96,7 @@ pub fn simulate(args: &Args) -> Result<Scene> {
         object.set_albedo_texture(read_texture(path)?).with_context(|| format!("texture {}", path.display()))?;
     }
     let k = rig_intrinsics(width, height);
-    let radius =
-        mesh.positions.iter().map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()).fold(0.0f32, f32::max) as f64;
+    let radius = mesh.radius() as f64;
     let distance = framing_distance(&k, width, height, radius, 0.85);
     let cameras = match args.rig.as_str() {
         "sphere" => Rig::Sphere { views: args.views }.cameras(k, width, height, distance, args.seed),

@@ -89,6 +89,8 @@ pub struct DarkRecord {
     pub exposure_us: f64,
     /// Frames averaged.
     pub frames: usize,
+    /// Frames the stream lost or failed and that were grabbed again.
+    pub dropped_frames: usize,
     /// The mean frame (16-bit PNG mosaic).
     pub file: FileRecord,
 }

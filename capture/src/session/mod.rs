@@ -132,11 +132,11 @@ pub fn capture(camera: &mut Camera, options: &SessionOptions) -> Result<SessionR
     clean_incomplete(dir, &manifest)?;
     manifest.write(dir)?;
 
-    let darks = dark_frames(camera, options, &mut manifest, format)?;
+    let (darks, dark_dropped) = dark_frames(camera, options, &mut manifest, format)?;
     let start = manifest.views.len();
     let bar = crate::progress_bar(options.progress, options.views as u64, "views");
     bar.set_position(start as u64);
-    let last = Arc::new(Mutex::new(LastView { done: start, ..LastView::default() }));
+    let last = Mutex::new(LastView { done: start, ..LastView::default() });
     let (to_processing, from_acquisition) = sync_channel::<GrabbedView>(QUEUE_DEPTH);
     let (to_writer, from_processing) = sync_channel::<ProcessedView>(QUEUE_DEPTH);
     // Set when processing or writing fails, so that acquisition stops before the next view.
@@ -166,7 +166,7 @@ pub fn capture(camera: &mut Camera, options: &SessionOptions) -> Result<SessionR
             views_complete: complete,
             views_planned: options.views,
             views_captured: complete - start,
-            dropped_frames: dropped,
+            dropped_frames: dark_dropped + dropped,
         }),
         Err(e) => Err(Error::Session { cause: Box::new(e), dir: dir.to_path_buf(), complete, planned: options.views }),
     }
@@ -278,36 +278,29 @@ fn clean_incomplete(dir: &Path, manifest: &Manifest) -> Result<()> {
     Ok(())
 }
 
-/// The mean dark frame of each exposure: read from the session, or captured now.
+/// The mean dark frame of each exposure: read from the session, or captured now; and the
+/// frames dropped (and grabbed again) while capturing them.
 fn dark_frames(
     camera: &mut Camera,
     options: &SessionOptions,
     manifest: &mut Manifest,
     format: PixelFormat,
-) -> Result<Vec<Option<RawFrame>>> {
+) -> Result<(Vec<Option<RawFrame>>, usize)> {
     let dir = options.dir.as_path();
     if options.dark_frames == 0 {
-        return Ok(vec![None; options.exposures_us.len()]);
+        return Ok((vec![None; options.exposures_us.len()], 0));
     }
     if manifest.dark.len() == options.exposures_us.len() {
-        return manifest
-            .dark
-            .iter()
-            .map(|d| {
-                let path = dir.join(&d.file.path);
-                RawFrame::read(&path, format, 0, 0).map(Some)
-            })
-            .collect();
+        let darks = manifest.dark.iter().map(|d| RawFrame::read(&dir.join(&d.file.path), format, 0, 0).map(Some));
+        return Ok((darks.collect::<Result<_>>()?, 0));
     }
     let (_, width, height) = camera.frame_format();
     options.positioning.cap_lens(camera, true)?;
     let mut darks = Vec::new();
     let mut dropped = 0;
     for &exposure in &options.exposures_us {
-        camera.set_exposure(exposure)?;
-        camera.start()?;
-        let frames = grab_frames(camera, options, options.dark_frames, &mut dropped)?;
-        camera.stop()?;
+        let dropped_before = dropped;
+        let frames = grab_burst(camera, options, exposure, options.dark_frames, &mut dropped)?;
         let frames: Vec<RawFrame> =
             frames.iter().map(|b| RawFrame::decode(b, format, width, height, camera.name())).collect::<Result<_>>()?;
         let mean = mean_frame(&frames)?;
@@ -316,17 +309,34 @@ fn dark_frames(
         manifest.dark.push(DarkRecord {
             exposure_us: exposure,
             frames: frames.len(),
+            dropped_frames: dropped - dropped_before,
             file: FileRecord::of(dir, &relative)?,
         });
         darks.push(Some(mean));
     }
     options.positioning.cap_lens(camera, false)?;
     manifest.write(dir)?;
-    Ok(darks)
+    Ok((darks, dropped))
 }
 
-/// Grab `count` complete frames (after one settling frame when free running): frames the
-/// stream loses, or that arrive short, are counted in `dropped` and grabbed again.
+/// Set the exposure, start, grab `count` complete frames (after one settling frame when free
+/// running), stop: frames the stream loses, or that arrive short, are counted in `dropped` and
+/// grabbed again.
+fn grab_burst(
+    camera: &mut Camera,
+    options: &SessionOptions,
+    exposure_us: f64,
+    count: usize,
+    dropped: &mut usize,
+) -> Result<Vec<Vec<u8>>> {
+    camera.set_exposure(exposure_us)?;
+    camera.start()?;
+    let frames = grab_frames(camera, options, count, dropped)?;
+    camera.stop()?;
+    Ok(frames)
+}
+
+/// [`grab_burst`]'s frames, acquisition running.
 fn grab_frames(
     camera: &mut Camera,
     options: &SessionOptions,
@@ -393,10 +403,7 @@ fn acquire_views(
         let mut frames = Vec::new();
         let mut dropped = 0;
         for &exposure in &options.exposures_us {
-            camera.set_exposure(exposure)?;
-            camera.start()?;
-            frames.push(grab_frames(camera, options, options.average, &mut dropped)?);
-            camera.stop()?;
+            frames.push(grab_burst(camera, options, exposure, options.average, &mut dropped)?);
         }
         dropped_total += dropped;
         let view = GrabbedView { index, captured_at, temperature_c, frames, dropped };

@@ -119,6 +119,11 @@ impl Mesh {
         Some(u.values.iter().zip(&v.values).map(|(&a, &b)| [a as f32, b as f32]).collect())
     }
 
+    /// Largest distance of a vertex from the origin (0 for an empty mesh).
+    pub fn radius(&self) -> f32 {
+        self.positions.iter().map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()).fold(0.0, f32::max)
+    }
+
     /// Axis-aligned bounds `(min, max)`; `None` for an empty mesh.
     pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
         let first = *self.positions.first()?;
