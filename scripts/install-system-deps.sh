@@ -12,6 +12,7 @@ packages=(
   libaravis-dev      # GenICam cameras (aravis 0.8: USB3 Vision, GigE Vision, the simulated camera)
   libusb-1.0-0-dev   # required by aravis-0.8.pc
   chromium           # headless browser for the live-preview page test
+  colmap             # camera poses by structure from motion (rmvp poses --method colmap), CPU SIFT
 )
 if [ "${1:-}" = bench ]; then
   packages+=(python3-numpy python3-opencv) # same OpenCV 4.6 as the Rust side

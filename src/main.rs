@@ -1,8 +1,11 @@
 //! `rmvp`: polarized multi-view capture, datasets and reconstruction of reflective objects.
+//! The command line only: each subcommand parses its arguments, builds a library's options,
+//! calls it and prints.
 
 mod commands;
 
 use clap::{Parser, Subcommand};
+use commands::*;
 
 /// Polarized multi-view capture, datasets and NeRSP reconstruction of reflective objects.
 #[derive(Parser)]
@@ -18,31 +21,43 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Run the pipeline on the built-in example and write a report.
-    Demo(commands::demo::Args),
-    /// Raw polarization-camera frames to angle images, Stokes, AoP and DoP.
-    Demosaic(commands::demosaic::Args),
-    /// Four polarizer images (0, 45, 90, 135 degrees) to Stokes, AoP and DoP.
-    Stokes(commands::stokes::Args),
-    /// Summarise and validate a scene folder (NeRSP or rmvp layout).
-    Info(commands::info::Args),
-    /// Convert a scene between the NeRSP and rmvp layouts, without loss.
-    Convert(commands::convert::Args),
+    Demo(demo::Args),
     /// Render a synthetic polarized capture of a mesh (scene folders and optional raw frames).
-    Simulate(commands::simulate::Args),
-    /// Compare a predicted mesh with the ground truth: Chamfer, F-score, normal error per view.
-    Eval(commands::eval::Args),
-    /// Ray cast a mesh's normal maps, masks and depths in every view of a scene.
-    RenderNormals(commands::render_normals::Args),
-    /// Align a scan onto a target mesh by a similarity (ICP with scale).
-    Align(commands::align::Args),
-    /// Reconstruct a scene with NeRSP: mesh, normal maps, re-rendered Stokes.
-    Recon(commands::recon::Args),
+    Simulate(simulate::Args),
     /// Capture a session of polarized views with the camera (or a simulated one).
-    Capture(commands::capture::Args),
+    Capture(capture::Args),
     /// List the GenICam cameras (USB3 Vision, GigE Vision) aravis finds.
     Cameras,
     /// Run a simulated polarization camera (GigE Vision on loopback) until killed.
-    SimulateCamera(commands::capture::SimulateCameraArgs),
+    SimulateCamera(capture::SimulateCameraArgs),
+    /// Camera intrinsics from views of a calibration board (a session or images).
+    Calibrate(calibrate::Args),
+    /// Camera poses of a session's views: ChArUco board, COLMAP, turntable or imported.
+    Poses(poses::Args),
+    /// Object masks of a session's views.
+    Masks(masks::Args),
+    /// Raw polarization-camera frames to angle images, Stokes, AoP and DoP.
+    Demosaic(demosaic::Args),
+    /// Four polarizer images (0, 45, 90, 135 degrees) to Stokes, AoP and DoP.
+    Stokes(stokes::Args),
+    /// Scene folders: summarise and validate, convert between layouts, ground-truth maps.
+    #[command(subcommand)]
+    Dataset(dataset::Command),
+    /// Reconstruct a scene with NeRSP: mesh, normal maps, re-rendered Stokes.
+    Recon(recon::Args),
+    /// Align a scan onto a target mesh by a similarity (ICP with scale).
+    Align(align::Args),
+    /// Compare a predicted mesh with the ground truth: Chamfer, F-score, normal error per view.
+    Eval(eval::Args),
+    /// `rmvp dataset info`.
+    #[command(hide = true)]
+    Info(dataset::InfoArgs),
+    /// `rmvp dataset convert`.
+    #[command(hide = true)]
+    Convert(dataset::ConvertArgs),
+    /// `rmvp dataset render-normals`.
+    #[command(hide = true)]
+    RenderNormals(dataset::RenderNormalsArgs),
 }
 
 fn main() {
@@ -51,22 +66,29 @@ fn main() {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().expect("thread pool set once");
     }
     let result = match cli.command {
-        Command::Demo(args) => commands::demo::run(args),
-        Command::Demosaic(args) => commands::demosaic::run(args),
-        Command::Stokes(args) => commands::stokes::run(args),
-        Command::Info(args) => commands::info::run(args),
-        Command::Convert(args) => commands::convert::run(args),
-        Command::Simulate(args) => commands::simulate::run(args),
-        Command::Eval(args) => commands::eval::run(args),
-        Command::RenderNormals(args) => commands::render_normals::run(args),
-        Command::Align(args) => commands::align::run(args),
-        Command::Recon(args) => commands::recon::run(args),
-        Command::Capture(args) => commands::capture::run(args),
-        Command::Cameras => commands::capture::cameras(),
-        Command::SimulateCamera(args) => commands::capture::simulate_camera(args),
+        Command::Demo(args) => demo::run(args),
+        Command::Simulate(args) => simulate::run(args),
+        Command::Capture(args) => capture::run(args),
+        Command::Cameras => capture::cameras(),
+        Command::SimulateCamera(args) => capture::simulate_camera(args),
+        Command::Calibrate(args) => calibrate::run(args),
+        Command::Poses(args) => poses::run(args),
+        Command::Masks(args) => masks::run(args),
+        Command::Demosaic(args) => demosaic::run(args),
+        Command::Stokes(args) => stokes::run(args),
+        Command::Dataset(command) => dataset::run(command),
+        Command::Recon(args) => recon::run(args),
+        Command::Align(args) => align::run(args),
+        Command::Eval(args) => eval::run(args),
+        Command::Info(args) => dataset::run(dataset::Command::Info(args)),
+        Command::Convert(args) => dataset::run(dataset::Command::Convert(args)),
+        Command::RenderNormals(args) => dataset::run(dataset::Command::RenderNormals(args)),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
+        if let Some(hint) = commands::hint(&e) {
+            eprintln!("{hint}");
+        }
         std::process::exit(1);
     }
 }

@@ -2,10 +2,10 @@
 //! Vision camera on loopback, in its own process so that it can be killed).
 
 use rmvp_capture::correction::subtract_dark;
-use rmvp_capture::session::manifest::Manifest;
 use rmvp_capture::simulator::{SimulatedScene, SimulatorConfig};
 use rmvp_capture::FrameProcessor;
-use rmvp_dataset::layout::canonical::read_stokes;
+use rmvp_dataset::layout::rmvp::read_stokes;
+use rmvp_dataset::session::{PositioningMode, SessionManifest, StokesUnit};
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
@@ -137,7 +137,7 @@ fn a_six_view_session_matches_the_renderer_within_the_noise() {
     // Dark frames (the simulated rig's lens cap) remove the black level.
     let out = run(capture_command("RMVPSESS01", &dir, &["--dark", "4"]));
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let manifest = Manifest::read(&dir).unwrap();
+    let manifest = SessionManifest::read(&dir).unwrap();
     assert_eq!((manifest.dark.len(), manifest.dark[0].frames), (1, 4));
     assert!(manifest.complete);
     assert_eq!(manifest.views.len(), 6);
@@ -169,7 +169,7 @@ fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() 
     let dir = rig.dir.clone();
     let session = capture_command("RMVPKILL01", &dir, &[]).stderr(Stdio::piped()).spawn().unwrap();
     let start = Instant::now();
-    while Manifest::read(&dir).map_or(0, |m| m.views.len()) < 2 {
+    while SessionManifest::read(&dir).map_or(0, |m| m.views.len()) < 2 {
         assert!(start.elapsed() < Duration::from_secs(120), "no progress");
         std::thread::sleep(Duration::from_millis(20));
     }
@@ -180,7 +180,7 @@ fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() 
     assert!(stderr.contains("RMVPKILL01"), "the error names the camera: {stderr}");
     assert!(stderr.contains("--resume"), "the error says how to continue: {stderr}");
 
-    let partial = Manifest::read(&dir).unwrap();
+    let partial = SessionManifest::read(&dir).unwrap();
     assert!(!partial.complete && (2..6).contains(&partial.views.len()), "{} views", partial.views.len());
     partial.verify(&dir).unwrap();
     let on_disk: Vec<String> = std::fs::read_dir(dir.join("views"))
@@ -196,7 +196,7 @@ fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() 
     assert!(String::from_utf8_lossy(&refused.stderr).contains("--resume"));
     let out = run(capture_command("RMVPKILL01", &dir, &["--resume"]));
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let resumed = Manifest::read(&dir).unwrap();
+    let resumed = SessionManifest::read(&dir).unwrap();
     assert!(resumed.complete);
     assert_eq!(resumed.views.len(), 6);
     assert_eq!(resumed.views[..partial.views.len()], partial.views[..], "views captured before stay identical");
@@ -217,10 +217,11 @@ fn hdr_brackets_recover_highlights_the_long_exposure_clips() {
     let args = ["--views", "2", "--hdr", "4000,120000", "--average", "2", "--dark", "2"];
     let out = run(capture_command("RMVPHDR01", &dir, &args));
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let manifest = Manifest::read(&dir).unwrap();
+    let manifest = SessionManifest::read(&dir).unwrap();
     assert_eq!(manifest.views[0].frames, 4);
     assert_eq!(manifest.dark.len(), 2);
-    assert!(manifest.settings.stokes_unit.contains("shortest exposure, 4000 us"), "{}", manifest.settings.stokes_unit);
+    let unit = &manifest.settings.stokes_unit;
+    assert!(matches!(unit, StokesUnit::HdrFullScale { shortest_exposure_us: 4000.0, .. }), "{unit}");
 
     let truth = SimulatedScene::new(&SimulatorConfig { views: 2, ..SimulatorConfig::default() }).unwrap().render(0);
     let measured = read_stokes(&dir.join("views/000/view_stokes.exr")).unwrap();
@@ -280,8 +281,8 @@ fn the_operator_presses_enter_between_views_and_a_closed_stdin_stops_cleanly() {
     assert!(stderr.contains("view 1/3: place the camera and press Enter"), "{stderr}");
     assert!(stderr.contains("1 views done; last:") && stderr.contains("saturated, mean DoP"), "{stderr}");
     assert!(stderr.contains("standard input closed") && stderr.contains("2 of 3 views complete"), "{stderr}");
-    let manifest = Manifest::read(&dir).unwrap();
-    assert_eq!((manifest.views.len(), manifest.settings.positioning.as_str()), (2, "interactive"));
+    let manifest = SessionManifest::read(&dir).unwrap();
+    assert_eq!((manifest.views.len(), manifest.settings.positioning), (2, PositioningMode::Interactive));
     manifest.verify(&dir).unwrap();
 }
 
@@ -292,7 +293,7 @@ fn frames_lost_on_the_link_are_counted_and_grabbed_again() {
     let out = run(capture_command("RMVPLOSS01", &dir, &["--views", "2", "--average", "8"]));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
-    let manifest = Manifest::read(&dir).unwrap();
+    let manifest = SessionManifest::read(&dir).unwrap();
     let dropped: usize = manifest.views.iter().map(|v| v.dropped_frames).sum();
     eprintln!("{dropped} frames dropped and grabbed again");
     assert!(dropped > 0, "no frame was lost at a 0.012 % packet loss");

@@ -1,5 +1,9 @@
 //! End-to-end tests: the `rmvp` binary as users run it.
 
+use rmvp_align::{Alignment, Evaluation};
+use rmvp_capture::sensor::SensorRecord;
+use rmvp_dataset::summary::SceneSummary;
+use rmvp_pipeline::demo::DemoReport;
 use rmvp_testkit::fixture;
 use std::path::Path;
 use std::process::{Command, Output};
@@ -31,21 +35,19 @@ fn demo_simulates_captures_and_builds_a_valid_dataset() {
     let stdout =
         ok(&["demo", "-o", s(&out), "--res", "192x160", "--spp", "8", "--recon-iters", "20", "--mesh-res", "48"]);
     assert!(stdout.contains("AoP error median"), "{stdout}");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
-    assert_eq!(report["captured_dataset"]["views"], 6);
+    let report = DemoReport::read(&out.join("report.json")).unwrap();
+    assert_eq!(report.captured_dataset.views, 6);
     // Captured from noisy raw frames of an 8-spp rendering: AoP within a few degrees where the
     // light is polarized, S0 within a few percent.
-    assert!(report["aop_error_deg"]["median"].as_f64().unwrap() < 5.0, "{report}");
-    assert!(report["aop_error_deg"]["pixels"].as_u64().unwrap() > 1000, "{report}");
-    assert!(report["s0_rel_error"]["median"].as_f64().unwrap() < 0.1, "{report}");
+    assert!(report.aop_error_deg.median < 5.0 && report.aop_error_deg.pixels > 1000, "{report:?}");
+    assert!(report.s0_rel_error.median < 0.1, "{report:?}");
     let sheet = rmvp_dataset::io::png::read_png_u8(&out.join("contact_sheet.png")).unwrap();
     assert_eq!(sheet.size(), (4 * 196 + 4, 6 * 164 + 4));
-    let info = ok(&["info", s(&out.join("captured"))]);
+    let info = ok(&["dataset", "info", s(&out.join("captured"))]);
     assert!(info.contains("6 (6 train, 0 eval)"), "{info}");
     // The reconstruction stage ran and was evaluated (20 iterations: a coarse blob, not a shape).
-    assert_eq!(report["reconstruction"]["iterations"], 20);
-    assert!(report["reconstruction"]["normal_mae_deg"].as_f64().unwrap().is_finite(), "{report}");
+    assert_eq!(report.reconstruction.iterations, 20);
+    assert!(report.reconstruction.normal_mae_deg.is_finite(), "{report:?}");
     for file in ["mesh.ply", "comparison.png", "log.jsonl", "checkpoint.bin", "normals/000.exr", "stokes/000_s0.exr"] {
         assert!(out.join("recon").join(file).is_file(), "{file}");
     }
@@ -65,11 +67,11 @@ fn demo_simulates_captures_and_builds_a_valid_dataset() {
         "-o",
         s(&again),
     ]);
-    let stokes = rmvp_dataset::layout::canonical::read_stokes(&again.join("003_stokes.exr")).unwrap();
-    let gain = serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(raw.join("sensor.json")).unwrap())
-        .unwrap()["stokes_gain"]
-        .as_f64()
-        .unwrap() as f32;
+    let stokes = rmvp_dataset::layout::rmvp::read_stokes(&again.join("003_stokes.exr")).unwrap();
+    let sensor = SensorRecord::read(&raw.join("sensor.json")).unwrap();
+    assert_eq!(sensor, report.raw_frames);
+    assert_eq!((sensor.width, sensor.height, sensor.pixel_format.name().as_str()), (384, 320, "BayerRGPolarized12p"));
+    let gain = sensor.stokes_gain;
     let captured = rmvp_dataset::io::npy::read_npy::<f32>(&out.join("captured/s0/0003.npy")).unwrap();
     assert!(stokes.s0.data().iter().zip(&captured.data).all(|(a, b)| (a / gain - b).abs() <= 1e-5 * b.abs().max(1.0)));
     for suffix in ["000.png", "045.png", "090.png", "135.png", "aop.exr", "dop.exr", "aop.png", "dop.png", "s0.png"] {
@@ -111,7 +113,7 @@ fn simulate_writes_both_layouts_and_raw_frames() {
         rmvp_dataset::io::exr::read_exr(&out.join("camera_normals/001.exr"), &["N.X", "N.Y", "N.Z"]).unwrap();
     let (world, r) = (a.views[1].normals.as_ref().unwrap(), a.views[1].camera.r);
     for (c, w) in cam_normals.data().chunks_exact(3).zip(world.data().chunks_exact(3)).step_by(97) {
-        let expected = r * nalgebra::Vector3::new(w[0] as f64, w[1] as f64, w[2] as f64);
+        let expected = [0, 1, 2].map(|i| (0..3).map(|j| r[(i, j)] * w[j] as f64).sum::<f64>());
         assert!((0..3).all(|k| (c[k] as f64 - expected[k]).abs() < 1e-5));
     }
     // Same seed, same bytes.
@@ -144,6 +146,8 @@ fn simulate_writes_both_layouts_and_raw_frames() {
     assert!(err.contains("texture coordinates"), "{err}");
     let err = fails(&["simulate", "-o", s(&again), "--res", "63x48"]);
     assert!(err.contains("even"), "{err}");
+    let err = fails(&["simulate", "-o", s(&again), "--rig", "orbit"]);
+    assert!(err.contains("invalid value 'orbit'") && err.contains("sphere, turntable"), "{err}");
 }
 
 #[test]
@@ -157,6 +161,8 @@ fn demosaic_reports_a_truncated_frame_by_name() {
     assert!(err.contains("expected 9 comma-separated numbers"), "{err}");
     let err = fails(&["demosaic", s(&raw), "-o", "x", "--pixel-format", "RGB8"]);
     assert!(err.contains("unsupported pixel format"), "{err}");
+    let err = fails(&["demosaic", s(&raw), "-o", "x", "--method", "nearest"]);
+    assert!(err.contains("invalid value 'nearest'") && err.contains("edge-aware"), "{err}");
 }
 
 #[test]
@@ -167,16 +173,15 @@ fn info_summarises_and_validates_both_layouts() {
         text.contains("nersp layout") && text.contains("8 (6 train, 2 eval)") && text.contains("2930 vertices"),
         "{text}"
     );
-    let json: serde_json::Value = serde_json::from_str(&ok(&["info", s(&spot), "--json"])).unwrap();
-    assert_eq!(json["views"].as_array().unwrap().len(), 8);
-    assert_eq!(
-        json["views"][0]["contents"],
-        serde_json::json!(["stokes", "mask", "aop", "polarizers", "preview", "normals"])
-    );
-    assert_eq!(json["views"][7]["split"], "eval");
+    let summary: SceneSummary = serde_json::from_str(&ok(&["info", s(&spot), "--json"])).unwrap();
+    assert_eq!(summary.views.len(), 8);
+    assert_eq!(summary.views[0].contents, ["stokes", "mask", "aop", "polarizers", "preview", "normals"]);
+    assert_eq!(summary.views[7].split, rmvp_dataset::Split::Eval);
 
     let err = fails(&["info", s(&spot.join("s0"))]);
     assert!(err.contains("not a scene"), "{err}");
+    // `rmvp info` is `rmvp dataset info`.
+    assert_eq!(ok(&["dataset", "info", s(&spot), "--json"]), ok(&["info", s(&spot), "--json"]));
 }
 
 #[test]
@@ -184,7 +189,7 @@ fn convert_round_trips_between_layouts() {
     let bunny = fixture("bunny_nersp");
     let tmp = tempfile::tempdir().unwrap();
     let (ours, back) = (tmp.path().join("ours"), tmp.path().join("back"));
-    ok(&["convert", s(&bunny), s(&ours), "--to", "rmvp"]);
+    ok(&["dataset", "convert", s(&bunny), s(&ours), "--to", "rmvp"]);
     assert!(ours.join("scene.json").is_file() && ours.join("views/000/stokes.exr").is_file());
     assert!(ok(&["info", s(&ours)]).contains("rmvp layout"));
     ok(&["convert", s(&ours), s(&back), "--to", "nersp"]);
@@ -193,6 +198,8 @@ fn convert_round_trips_between_layouts() {
     assert!(a == b, "scene changed through convert");
     let err = fails(&["convert", s(&bunny), s(&ours), "--to", "rmvp"]);
     assert!(err.contains("not empty"), "{err}");
+    let err = fails(&["convert", s(&bunny), s(&tmp.path().join("x")), "--to", "canonical"]);
+    assert!(err.contains("invalid value 'canonical'") && err.contains("nersp, rmvp"), "{err}");
 }
 
 #[test]
@@ -232,7 +239,7 @@ fn eval_and_render_normals_on_a_fixture() {
     let spot = fixture("spot_nersp");
     let gt = spot.join("gt/mesh.ply");
     let tmp = tempfile::tempdir().unwrap();
-    let json: serde_json::Value = serde_json::from_str(&ok(&[
+    let json: Evaluation = serde_json::from_str(&ok(&[
         "eval",
         "--pred",
         s(&gt),
@@ -247,16 +254,16 @@ fn eval_and_render_normals_on_a_fixture() {
         s(tmp.path()),
     ]))
     .unwrap();
-    assert!(json["chamfer"].as_f64().unwrap() < 1e-6, "{json}");
-    assert_eq!(json["fscore"], 1.0);
-    assert!(json["normal_mae_deg"].as_f64().unwrap() < 3.0, "{json}");
-    assert_eq!(json["normal_views"].as_array().unwrap().len(), 8);
+    assert!(json.surface.chamfer < 1e-6, "{json:?}");
+    assert_eq!(json.surface.fscore, 1.0);
+    assert!(json.normal_mae_deg.unwrap() < 3.0, "{json:?}");
+    assert_eq!(json.normal_views.len(), 8);
     assert!(tmp.path().join("006_normal_error.png").is_file());
     let text = ok(&["eval", "--pred", s(&gt), "--gt", s(&gt), "--max-samples", "1000"]);
     assert!(text.contains("chamfer") && text.contains("F-score"), "{text}");
 
     let out = tmp.path().join("normals");
-    ok(&["render-normals", "--mesh", s(&gt), "--scene", s(&spot), "-o", s(&out)]);
+    ok(&["dataset", "render-normals", "--mesh", s(&gt), "--scene", s(&spot), "-o", s(&out)]);
     let ours = rmvp_dataset::io::exr::read_exr(&out.join("007_normal.exr"), &["N.X", "N.Y", "N.Z"]).unwrap();
     let theirs = rmvp_dataset::io::exr::read_exr(&spot.join("gt/normal/007.exr"), &["N.X", "N.Y", "N.Z"]).unwrap();
     let mut errors: Vec<f64> = ours
@@ -294,13 +301,11 @@ fn align_recovers_a_moved_scaled_copy() {
     let out = tmp.path().join("aligned");
     let text = ok(&["align", "--scan", s(&scan), "--to", s(&spot), "-o", s(&out)]);
     assert!(text.contains("rotation 30.0"), "{text}");
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("alignment.json")).unwrap()).unwrap();
-    let scale = json["scan_to_target"]["s"].as_f64().unwrap();
-    assert!((scale - 1.0 / 1.1).abs() < 1e-3, "{json}");
-    assert!((json["scan_to_target"]["inverse"]["s"].as_f64().unwrap() - 1.1).abs() < 1e-3);
+    let alignment = Alignment::read(&out.join("alignment.json")).unwrap();
+    assert!((alignment.transform.s - 1.0 / 1.1).abs() < 1e-3, "{alignment:?}");
+    assert!((alignment.transform.inverse().s - 1.1).abs() < 1e-3);
     // The aligned scan lies on the target: Chamfer about zero.
-    let eval: serde_json::Value = serde_json::from_str(&ok(&[
+    let eval: Evaluation = serde_json::from_str(&ok(&[
         "eval",
         "--pred",
         s(&out.join("aligned.ply")),
@@ -311,7 +316,7 @@ fn align_recovers_a_moved_scaled_copy() {
         "20000",
     ]))
     .unwrap();
-    assert!(eval["chamfer"].as_f64().unwrap() < 1e-3, "{eval}");
+    assert!(eval.surface.chamfer < 1e-3, "{eval:?}");
 }
 
 #[test]

@@ -8,8 +8,8 @@ use nalgebra::{Rotation3, Unit, Vector3};
 use rmvp_align::sampling::sample_surface;
 use rmvp_align::{align, IcpOptions, Similarity};
 use rmvp_dataset::io::write_bytes_atomically;
+use rmvp_dataset::rng::Rng;
 use rmvp_dataset::Mesh;
-use rmvp_render::rng::Rng;
 use std::collections::HashMap;
 use std::time::Instant;
 

@@ -6,14 +6,19 @@
 //! Work happens in a normalised frame (target centroid at the origin, RMS radius 1) so that the
 //! thresholds and the damping mean the same for millimetres and metres.
 
+use crate::{Error, Result};
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::{Matrix3, Matrix4, Rotation3, SMatrix, SVector, Vector3};
 use rayon::prelude::*;
-use rmvp_dataset::{Error, Mesh, Result};
-use serde::Serialize;
+use rmvp_dataset::io::json::{read_json, write_json};
+use rmvp_dataset::Mesh;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
 
-/// A similarity `x -> s R x + t`.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// A similarity `x -> s R x + t`; stored as its rotation, translation, scale and 4x4 matrix
+/// (row-major), which must agree when read.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "SimilarityRecord", into = "SimilarityRecord")]
 pub struct Similarity {
     /// Rotation.
     pub r: Matrix3<f64>,
@@ -57,6 +62,63 @@ impl Similarity {
     pub fn angle_deg(&self) -> f64 {
         ((self.r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
     }
+
+    /// A mesh moved by this similarity (positions transformed, normals rotated).
+    pub fn apply_to_mesh(&self, mesh: &Mesh) -> Mesh {
+        let moved = |p: &[f32; 3], f: &dyn Fn(&Vector3<f64>) -> Vector3<f64>| {
+            let q = f(&Vector3::from(p.map(|v| v as f64)));
+            [q.x as f32, q.y as f32, q.z as f32]
+        };
+        Mesh {
+            positions: mesh.positions.iter().map(|p| moved(p, &|v| self.apply(v))).collect(),
+            normals: mesh.normals.as_ref().map(|n| n.iter().map(|p| moved(p, &|v| self.r * v)).collect()),
+            ..mesh.clone()
+        }
+    }
+}
+
+/// The stored form of a [`Similarity`].
+#[derive(Serialize, Deserialize)]
+struct SimilarityRecord {
+    /// Rotation, row-major.
+    r: [[f64; 3]; 3],
+    /// Translation.
+    t: [f64; 3],
+    /// Scale.
+    s: f64,
+    /// `s R | t` as a 4x4 matrix, row-major.
+    matrix: [[f64; 4]; 4],
+}
+
+impl From<Similarity> for SimilarityRecord {
+    fn from(s: Similarity) -> Self {
+        let m = s.matrix();
+        Self {
+            r: rmvp_dataset::camera::matrix_rows(&s.r),
+            t: [s.t.x, s.t.y, s.t.z],
+            s: s.s,
+            matrix: [0, 1, 2, 3].map(|i| [0, 1, 2, 3].map(|j| m[(i, j)])),
+        }
+    }
+}
+
+impl TryFrom<SimilarityRecord> for Similarity {
+    type Error = String;
+
+    fn try_from(rec: SimilarityRecord) -> std::result::Result<Self, String> {
+        let s = Similarity { r: rmvp_dataset::camera::matrix_from_rows(&rec.r), t: Vector3::from(rec.t), s: rec.s };
+        if !(s.s > 0.0 && s.s.is_finite()) {
+            return Err(format!("scale {} is not positive", rec.s));
+        }
+        if (s.r * s.r.transpose() - Matrix3::identity()).abs().max() > 1e-6 || s.r.determinant() < 0.0 {
+            return Err("r is not a rotation".into());
+        }
+        let deviation = (s.matrix() - Matrix4::from_fn(|i, j| rec.matrix[i][j])).abs().max();
+        if deviation.is_nan() || deviation > 1e-9 * (1.0 + s.matrix().abs().max()) {
+            return Err(format!("matrix disagrees with r, t and s (by {deviation:.1e})"));
+        }
+        Ok(s)
+    }
 }
 
 /// Settings of the alignment.
@@ -89,8 +151,9 @@ impl Default for IcpOptions {
     }
 }
 
-/// The result of an alignment.
-#[derive(Clone, Debug, PartialEq)]
+/// The result of an alignment (`alignment.json`: the similarity both ways and the residuals).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "AlignmentRecord", into = "AlignmentRecord")]
 pub struct Alignment {
     /// Scan to target.
     pub transform: Similarity,
@@ -100,6 +163,72 @@ pub struct Alignment {
     pub median_distance: f64,
     /// Share of scan points within the final correspondence distance.
     pub inlier_ratio: f64,
+}
+
+/// The stored form of an [`Alignment`]: `x_target = s R x_scan + t`, and the inverse.
+#[derive(Serialize, Deserialize)]
+struct AlignmentRecord {
+    scan_to_target: Similarity,
+    target_to_scan: Similarity,
+    rms_point_to_plane: f64,
+    median_distance: f64,
+    inlier_ratio: f64,
+}
+
+impl From<Alignment> for AlignmentRecord {
+    fn from(a: Alignment) -> Self {
+        Self {
+            scan_to_target: a.transform,
+            target_to_scan: a.transform.inverse(),
+            rms_point_to_plane: a.rms,
+            median_distance: a.median_distance,
+            inlier_ratio: a.inlier_ratio,
+        }
+    }
+}
+
+impl TryFrom<AlignmentRecord> for Alignment {
+    type Error = String;
+
+    fn try_from(rec: AlignmentRecord) -> std::result::Result<Self, String> {
+        let round_trip = rec.target_to_scan.compose(&rec.scan_to_target).matrix() - Matrix4::identity();
+        if round_trip.abs().max() > 1e-6 {
+            return Err("target_to_scan is not the inverse of scan_to_target".into());
+        }
+        Ok(Self {
+            transform: rec.scan_to_target,
+            rms: rec.rms_point_to_plane,
+            median_distance: rec.median_distance,
+            inlier_ratio: rec.inlier_ratio,
+        })
+    }
+}
+
+/// The file an alignment is stored in.
+pub const ALIGNMENT_FILE: &str = "alignment.json";
+/// The scan moved onto the target.
+pub const ALIGNED_MESH: &str = "aligned.ply";
+
+impl Alignment {
+    /// Read an alignment written by [`Alignment::write`].
+    pub fn read(path: &Path) -> Result<Self> {
+        Ok(read_json(path, "an alignment")?)
+    }
+
+    /// Write to `path` (JSON, atomically).
+    pub fn write(&self, path: &Path) -> Result<()> {
+        Ok(write_json(path, self)?)
+    }
+}
+
+/// Align the scan file `scan` onto the target file `target` and write `out/alignment.json` and
+/// `out/aligned.ply` (the scan moved onto the target).
+pub fn align_files(scan: &Path, target: &Path, out: &Path, options: &IcpOptions) -> Result<Alignment> {
+    let (scan_mesh, target_mesh) = (Mesh::read(scan)?, Mesh::read(target)?);
+    let alignment = align(&scan_mesh, &target_mesh, options)?;
+    alignment.write(&out.join(ALIGNMENT_FILE))?;
+    alignment.transform.apply_to_mesh(&scan_mesh).write(&out.join(ALIGNED_MESH))?;
+    Ok(alignment)
 }
 
 /// A target: points with unit normals and a k-d tree over them.
@@ -146,7 +275,7 @@ fn target_from_mesh(mesh: &Mesh, samples: usize, seed: u64, normalize: &Similari
     } else if let Some(normals) = &mesh.normals {
         (mesh.positions.clone(), normals.clone())
     } else {
-        return Err(Error::invalid("the target needs faces or vertex normals"));
+        return Err(Error::TargetWithoutSurface);
     };
     let points: Vec<[f32; 3]> = points
         .iter()
@@ -155,7 +284,8 @@ fn target_from_mesh(mesh: &Mesh, samples: usize, seed: u64, normalize: &Similari
             [q.x as f32, q.y as f32, q.z as f32]
         })
         .collect();
-    let tree = ImmutableKdTree::new_from_slice(&points).map_err(|e| Error::invalid(format!("k-d tree: {e:?}")))?;
+    let tree = ImmutableKdTree::new_from_slice(&points)
+        .map_err(|e| Error::BadMesh { which: "target", message: format!("k-d tree: {e:?}") })?;
     Ok(Target { points, normals, tree })
 }
 
@@ -279,7 +409,7 @@ fn symmetric_score(
 /// Align `scan` (points; a mesh's vertices) onto the surface of `target`.
 pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignment> {
     if scan.positions.len() < 10 {
-        return Err(Error::invalid("the scan has fewer than 10 points"));
+        return Err(Error::TooFewScanPoints { points: scan.positions.len() });
     }
     let target_vertices: Vec<Vector3<f64>> =
         target.positions.iter().map(|p| Vector3::from(p.map(|v| v as f64))).collect();
@@ -287,7 +417,7 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
     // Normalised frame: target centroid at the origin, target RMS radius 1.
     let normalize = Similarity { r: Matrix3::identity(), t: -tc / tr, s: 1.0 / tr };
     let tgt = target_from_mesh(target, options.target_samples, options.seed, &normalize)?;
-    let mut rng = rmvp_render::rng::Rng::for_pixel(options.seed, 1, 0);
+    let mut rng = rmvp_dataset::rng::Rng::for_pixel(options.seed, 1, 0);
     let mut subsample = |n: usize| -> Vec<Vector3<f64>> {
         let take = n.min(scan.positions.len());
         (0..take)
@@ -385,34 +515,6 @@ fn cube_rotations() -> Vec<Matrix3<f64>> {
     out
 }
 
-/// JSON form of an alignment result.
-#[derive(Clone, Debug, Serialize)]
-pub struct AlignmentRecord {
-    /// Rotation, row-major.
-    pub r: [[f64; 3]; 3],
-    /// Translation.
-    pub t: [f64; 3],
-    /// Scale.
-    pub s: f64,
-    /// 4x4 matrix, row-major.
-    pub matrix: [[f64; 4]; 4],
-    /// The inverse (target to scan), same fields.
-    pub inverse: Option<Box<AlignmentRecord>>,
-}
-
-impl From<&Similarity> for AlignmentRecord {
-    fn from(s: &Similarity) -> Self {
-        let m = s.matrix();
-        AlignmentRecord {
-            r: [0, 1, 2].map(|i| [0, 1, 2].map(|j| s.r[(i, j)])),
-            t: [s.t.x, s.t.y, s.t.z],
-            s: s.s,
-            matrix: [0, 1, 2, 3].map(|i| [0, 1, 2, 3].map(|j| m[(i, j)])),
-            inverse: None,
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -430,6 +532,8 @@ mod tests {
         let m = a.matrix();
         assert!(((m * p.push(1.0)).xyz() - a.apply(&p)).norm() < 1e-12);
         assert_eq!(cube_rotations().len(), 24);
+        let text = serde_json::to_string(&a).unwrap();
+        assert_eq!(serde_json::from_str::<Similarity>(&text).unwrap(), a);
         assert!(cube_rotations().iter().all(|r| (r.determinant() - 1.0).abs() < 1e-12));
     }
 }

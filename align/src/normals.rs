@@ -2,14 +2,15 @@
 //! at every pixel centre and compared with the scene's ground-truth normal maps over the
 //! pixels where both the ground-truth mask and the prediction cover the object.
 
+use crate::{Error, Result};
 use rayon::prelude::*;
-use rmvp_dataset::{Error, Image, Mesh, Result, Scene};
+use rmvp_dataset::{Image, Mesh, Scene};
 use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::{geometry_maps, Object};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The error in one view.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ViewNormalError {
     /// View name.
     pub view: String,
@@ -23,7 +24,7 @@ pub struct ViewNormalError {
 }
 
 /// The error over a scene's views.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct NormalReport {
     /// Per view, in scene order (views without ground-truth normals are skipped).
     pub views: Vec<ViewNormalError>,
@@ -58,13 +59,13 @@ pub fn normal_errors(pred: &Mesh, scene: &Scene) -> Result<NormalReport> {
                 pixels += 1;
             }
             if pixels == 0 {
-                return Err(Error::invalid(format!("view {}: the prediction covers no ground-truth pixel", view.name)));
+                return Err(Error::NoCoverage { view: view.name.clone() });
             }
             Ok(ViewNormalError { view: view.name.clone(), mae_deg: sum / pixels as f64, pixels, error_map })
         })
         .collect::<Result<_>>()?;
     if views.is_empty() {
-        return Err(Error::invalid("the scene has no ground-truth normal maps"));
+        return Err(Error::NoGroundTruthNormals);
     }
     let mean_mae_deg = views.iter().map(|v| v.mae_deg).sum::<f64>() / views.len() as f64;
     Ok(NormalReport { views, mean_mae_deg })

@@ -1,7 +1,7 @@
 //! Area-uniform random points on a triangle mesh.
 
+use rmvp_dataset::rng::Rng;
 use rmvp_dataset::Mesh;
-use rmvp_render::rng::Rng;
 
 /// Total surface area of a mesh.
 pub fn surface_area(mesh: &Mesh) -> f64 {

@@ -4,12 +4,13 @@
 //! are exact point-to-triangle distances (parry3d).
 
 use crate::sampling::{sample_surface, surface_area};
+use crate::{Error, Result};
 use parry3d::math::Vector;
 use parry3d::query::PointQuery;
 use parry3d::shape::TriMesh;
 use rayon::prelude::*;
-use rmvp_dataset::{Error, Mesh, Result};
-use serde::Serialize;
+use rmvp_dataset::Mesh;
+use serde::{Deserialize, Serialize};
 
 /// How the metrics are computed.
 #[derive(Clone, Debug, PartialEq)]
@@ -33,7 +34,7 @@ impl Default for SurfaceOptions {
 }
 
 /// The metrics, in the meshes' units.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SurfaceMetrics {
     /// Mean distance from predicted samples to the ground truth.
     pub accuracy: f64,
@@ -53,10 +54,10 @@ pub struct SurfaceMetrics {
     pub samples: [usize; 2],
 }
 
-fn trimesh(mesh: &Mesh, what: &str) -> Result<TriMesh> {
+fn trimesh(mesh: &Mesh, which: &'static str) -> Result<TriMesh> {
     mesh.validate()?;
     let vertices = mesh.positions.iter().map(|p| Vector::new(p[0], p[1], p[2])).collect();
-    TriMesh::new(vertices, mesh.faces.clone()).map_err(|e| Error::invalid(format!("{what} mesh: {e:?}")))
+    TriMesh::new(vertices, mesh.faces.clone()).map_err(|e| Error::BadMesh { which, message: format!("{e:?}") })
 }
 
 fn sample_count(mesh: &Mesh, options: &SurfaceOptions) -> usize {
@@ -79,14 +80,17 @@ pub fn surface_metrics(pred: &Mesh, gt: &Mesh, options: &SurfaceOptions) -> Resu
     let threshold = match options.threshold {
         Some(t) => t,
         None => {
-            let (lo, hi) = gt.bounds().ok_or_else(|| Error::invalid("ground-truth mesh is empty"))?;
+            let (lo, hi) = gt.bounds().ok_or(Error::NoSurfaceArea { which: "ground-truth" })?;
             0.01 * (0..3).map(|k| ((hi[k] - lo[k]) as f64).powi(2)).sum::<f64>().sqrt()
         }
     };
     let pred_points = sample_surface(pred, sample_count(pred, options), options.seed);
     let gt_points = sample_surface(gt, sample_count(gt, options), options.seed.wrapping_add(1));
-    if pred_points.is_empty() || gt_points.is_empty() {
-        return Err(Error::invalid("a mesh has no surface area to sample"));
+    if pred_points.is_empty() {
+        return Err(Error::NoSurfaceArea { which: "predicted" });
+    }
+    if gt_points.is_empty() {
+        return Err(Error::NoSurfaceArea { which: "ground-truth" });
     }
     let to_gt = distances(&gt_shape, &pred_points);
     let to_pred = distances(&pred_shape, &gt_points);

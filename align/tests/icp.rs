@@ -2,10 +2,11 @@
 //! small_gicp's suites: spot scaled to millimetres is the target.
 
 use nalgebra::{Rotation3, Vector3};
+use rmvp_align::icp::{ALIGNED_MESH, ALIGNMENT_FILE};
 use rmvp_align::sampling::sample_surface;
-use rmvp_align::{align, IcpOptions, Similarity};
+use rmvp_align::{align, align_files, Alignment, Error, IcpOptions, Similarity};
+use rmvp_dataset::rng::Rng;
 use rmvp_dataset::Mesh;
-use rmvp_render::rng::Rng;
 
 /// The built-in spot, 200 mm across.
 fn target() -> Mesh {
@@ -150,4 +151,35 @@ fn a_plane_shifted_along_its_normal_is_a_pure_translation() {
     let t = found.transform;
     assert!((t.t.z + 3.0).abs() < 0.01, "{:?}", t.t);
     assert!(t.angle_deg() < 0.01 && (t.s - 1.0).abs() < 0.03 && t.t.xy().norm() < 2.0, "{t:?}");
+}
+
+#[test]
+fn alignment_files_read_back_what_they_wrote() {
+    let dir = tempfile::tempdir().unwrap();
+    let target = target();
+    let want = truth(10.0, Vector3::new(0.0, 1.0, 0.0), 1.02, Vector3::new(3.0, -2.0, 1.0));
+    let (scan_path, target_path) = (dir.path().join("scan.ply"), dir.path().join("target.ply"));
+    scan(&target, &want, 5_000, 1).write(&scan_path).unwrap();
+    target.write(&target_path).unwrap();
+    let options = IcpOptions { max_scan_points: 5_000, target_samples: 20_000, ..IcpOptions::default() };
+    let found = align_files(&scan_path, &target_path, dir.path(), &options).unwrap();
+    let path = dir.path().join(ALIGNMENT_FILE);
+    assert_eq!(Alignment::read(&path).unwrap(), found);
+    let aligned = Mesh::read(&dir.path().join(ALIGNED_MESH)).unwrap();
+    assert_eq!(aligned.positions.len(), 5_000);
+    let first = found.transform.apply(&Vector3::from(Mesh::read(&scan_path).unwrap().positions[0].map(|v| v as f64)));
+    assert!((Vector3::from(aligned.positions[0].map(|v| v as f64)) - first).norm() < 1e-3);
+
+    // A file whose inverse does not match its forward transform is refused, naming the file.
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    json["target_to_scan"]["t"][0] = serde_json::json!(99.0);
+    json["target_to_scan"]["matrix"][0][3] = serde_json::json!(99.0);
+    std::fs::write(&path, json.to_string()).unwrap();
+    let err = Alignment::read(&path).unwrap_err().to_string();
+    assert!(err.contains(ALIGNMENT_FILE) && err.contains("not the inverse"), "{err}");
+
+    // Too small a scan is a typed error.
+    let tiny = Mesh { positions: vec![[0.0; 3]; 5], ..Mesh::default() };
+    assert!(matches!(align(&tiny, &target, &options), Err(Error::TooFewScanPoints { points: 5 })));
 }

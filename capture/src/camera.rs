@@ -6,6 +6,7 @@ use crate::raw::PixelFormat;
 use crate::{Error, Result};
 use aravis::glib::prelude::Cast;
 use aravis::prelude::*;
+pub use rmvp_dataset::session::{CameraIdentity, CameraSettings, TriggerSource};
 use serde::{Deserialize, Serialize};
 use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
@@ -47,57 +48,6 @@ pub fn list_devices() -> Vec<DeviceInfo> {
             address: text(&d.address),
         })
         .collect()
-}
-
-/// What a camera says it is.
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Identity {
-    /// `DeviceVendorName`.
-    pub vendor: String,
-    /// `DeviceModelName`.
-    pub model: String,
-    /// `DeviceSerialNumber`.
-    pub serial: String,
-    /// `DeviceFirmwareVersion` (or `DeviceVersion`).
-    pub firmware: String,
-    /// Transport: `USB3Vision` or `GigEVision`.
-    pub protocol: String,
-}
-
-/// What starts a frame.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub enum TriggerSource {
-    /// Free running at the frame rate.
-    FreeRun,
-    /// A pulse on the camera's opto-isolated input `Line0`.
-    Line0,
-}
-
-/// Acquisition settings, by the FLIR Blackfly S feature names.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct CameraSettings {
-    /// Pixel format name; `None`: negotiated (see [`choose_pixel_format`]).
-    pub pixel_format: Option<String>,
-    /// `ExposureTime` in microseconds (`ExposureAuto=Off`).
-    pub exposure_us: f64,
-    /// `Gain` in dB (`GainAuto=Off`).
-    pub gain_db: f64,
-    /// `AcquisitionFrameRate` in Hz (`AcquisitionFrameRateEnable`); `None`: as fast as possible.
-    pub frame_rate: Option<f64>,
-    /// Trigger of each frame.
-    pub trigger: TriggerSource,
-}
-
-impl Default for CameraSettings {
-    fn default() -> Self {
-        Self {
-            pixel_format: None,
-            exposure_us: 20_000.0,
-            gain_db: 0.0,
-            frame_rate: None,
-            trigger: TriggerSource::FreeRun,
-        }
-    }
 }
 
 /// Pixel formats in order of preference: the full 12-bit depth packed, then 16-bit, 10-bit
@@ -199,10 +149,10 @@ impl Camera {
     }
 
     /// Vendor, model, serial and firmware.
-    pub fn identity(&self) -> Identity {
+    pub fn identity(&self) -> CameraIdentity {
         let read = |f: &str| self.feature(f).unwrap_or_default();
         let firmware = self.feature("DeviceFirmwareVersion").or_else(|_| self.feature("DeviceVersion"));
-        Identity {
+        CameraIdentity {
             vendor: read("DeviceVendorName"),
             model: read("DeviceModelName"),
             serial: read("DeviceSerialNumber"),

@@ -11,6 +11,7 @@ use rmvp_dataset::Image;
 
 /// Demosaicing algorithm.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum DemosaicMethod {
     /// Bilinear interpolation (OpenCV's default, fastest).
     #[default]
@@ -22,18 +23,6 @@ pub enum DemosaicMethod {
 }
 
 impl DemosaicMethod {
-    /// Parse `bilinear`, `edge-aware` or `vng`.
-    pub fn from_name(name: &str) -> Result<Self> {
-        match name {
-            "bilinear" => Ok(Self::Bilinear),
-            "edge-aware" | "ea" => Ok(Self::EdgeAware),
-            "vng" => Ok(Self::Vng),
-            other => {
-                Err(Error::Unsupported(format!("unknown demosaicing method {other:?} (bilinear, edge-aware, vng)")))
-            }
-        }
-    }
-
     fn opencv_code(self) -> i32 {
         match self {
             Self::Bilinear => imgproc::COLOR_BayerBG2RGB,

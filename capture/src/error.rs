@@ -1,4 +1,4 @@
-//! Errors of frame processing.
+//! Errors of frame processing, cameras and capture sessions.
 
 use std::path::PathBuf;
 
@@ -11,6 +11,14 @@ pub enum Error {
     /// A data-model or file error (names the file).
     #[error(transparent)]
     Dataset(#[from] rmvp_dataset::Error),
+    /// A scene the simulated camera cannot render.
+    #[cfg(feature = "acquisition")]
+    #[error(transparent)]
+    Render(#[from] rmvp_render::Error),
+    /// A simulated lab that cannot be built (its board).
+    #[cfg(feature = "acquisition")]
+    #[error(transparent)]
+    Calib(#[from] rmvp_calib::Error),
     /// A frame whose bytes do not match its declared format and size.
     #[error("{source_name}: {message}")]
     Frame {
@@ -27,8 +35,8 @@ pub enum Error {
         /// What went wrong.
         message: String,
     },
-    /// A session that stopped early: the cause, and where the session stands.
-    #[error("{cause}\nsession {dir}: {complete} of {planned} views complete and saved; fix the cause and run the same command with --resume to continue", dir = dir.display())]
+    /// A session that stopped early: the cause, and where the session stands (resumable).
+    #[error("{cause}\nsession {dir}: {complete} of {planned} views complete and saved; fix the cause and resume the session to continue", dir = dir.display())]
     Session {
         /// What stopped it.
         cause: Box<Error>,
@@ -39,6 +47,49 @@ pub enum Error {
         /// Views planned.
         planned: usize,
     },
+    /// A new session asked for in a folder that already holds one.
+    #[error("{}: already holds a session of {object:?} ({complete} of {planned} views)", dir.display())]
+    SessionExists {
+        /// Session folder.
+        dir: PathBuf,
+        /// Its object.
+        object: String,
+        /// Views complete.
+        complete: usize,
+        /// Views planned.
+        planned: usize,
+    },
+    /// Resuming a folder that holds no session.
+    #[error("{}: has no session to resume (no session.json)", dir.display())]
+    NothingToResume {
+        /// The folder.
+        dir: PathBuf,
+    },
+    /// Resuming a session with another camera or other settings.
+    #[error("{}: was captured with {what} {was}; this run has {now}: resume with the same camera and options", dir.display())]
+    ResumeMismatch {
+        /// Session folder.
+        dir: PathBuf,
+        /// What differs.
+        what: String,
+        /// The session's value.
+        was: String,
+        /// This run's value.
+        now: String,
+    },
+    /// Too little free space for the next view (nothing of it was written).
+    #[error("{}: disk full: {free_mib:.0} MiB free, the next view needs about {needed_mib:.0} MiB; free space and resume", dir.display())]
+    DiskFull {
+        /// The session folder.
+        dir: PathBuf,
+        /// Free space, MiB.
+        free_mib: f64,
+        /// Space wanted, MiB.
+        needed_mib: f64,
+    },
+    /// Standard input closed while waiting for the operator.
+    #[error("standard input closed while waiting for the operator")]
+    OperatorGone,
     /// A processing request that cannot be met (unsupported combination of options).
     #[error("{0}")]
     Unsupported(String),

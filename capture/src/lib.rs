@@ -4,38 +4,33 @@
 //! ([`pipeline`]) and, the other way round, a model of the sensor that turns rendered light
 //! into raw frames ([`sensor`]).
 //!
+//! With the `acquisition` feature (default): GenICam cameras through aravis ([`camera`]), the
+//! simulated camera ([`simulator`]), capture sessions ([`session`]; their files are read
+//! through [`rmvp_dataset::session`], without this crate) and the live preview ([`preview`]).
+//!
 //! Target sensor: Sony IMX250MYR (FLIR Blackfly S BFS-U3-51S5PC-C), 2448x2048, each 2x2 cell of
 //! polarizers `[90 45; 135 0]` under one colour of an RGGB Bayer pattern; and its mono sibling
 //! IMX250MZR. Polarization conventions are those of [`rmvp_dataset::polarization`].
 
+#![warn(missing_docs)]
+
+#[cfg(feature = "acquisition")]
 pub mod camera;
 pub mod correction;
 pub mod demosaic;
 pub mod error;
 pub mod mosaic;
 pub mod pipeline;
+#[cfg(feature = "acquisition")]
 pub mod preview;
 pub mod raw;
 pub mod sensor;
+#[cfg(feature = "acquisition")]
 pub mod session;
+#[cfg(feature = "acquisition")]
 pub mod simulator;
 pub mod stokes;
 
 pub use error::{Error, Result};
 pub use pipeline::{FrameProcessor, ProcessedFrame};
 pub use raw::{PixelFormat, RawFrame};
-
-/// A progress bar on standard error (hidden when `show` is false).
-pub fn progress_bar(show: bool, total: u64, what: &str) -> indicatif::ProgressBar {
-    if !show {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new(total);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{prefix:>10} [{bar:30}] {pos}/{len} {msg} ({elapsed}, eta {eta})")
-            .expect("valid template")
-            .progress_chars("=> "),
-    );
-    bar.set_prefix(what.to_string());
-    bar
-}

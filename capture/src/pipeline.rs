@@ -8,7 +8,7 @@ use crate::stokes::{StokesEstimate, StokesEstimator};
 use crate::{Error, RawFrame, Result};
 use rayon::prelude::*;
 use rmvp_dataset::io::{exr, png};
-use rmvp_dataset::layout::canonical::write_stokes;
+use rmvp_dataset::layout::rmvp::write_stokes;
 use rmvp_dataset::polarization::{self, POLARIZER_ANGLES_DEG};
 use rmvp_dataset::{visualize, Image, Stokes};
 use std::path::{Path, PathBuf};

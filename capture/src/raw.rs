@@ -38,8 +38,9 @@ impl FormatFamily {
     }
 }
 
-/// A GenICam pixel format of a polarization sensor (names as in the PFNC).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// A GenICam pixel format of a polarization sensor (names as in the PFNC; stored by name).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(try_from = "String", into = "String")]
 pub struct PixelFormat {
     /// The name's family, which fixes the sensor mosaic.
     pub family: FormatFamily,
@@ -89,6 +90,28 @@ impl PixelFormat {
             (_, true) => (pixels * self.bits as usize).div_ceil(8),
             _ => pixels * 2,
         }
+    }
+}
+
+impl std::str::FromStr for PixelFormat {
+    type Err = Error;
+
+    fn from_str(name: &str) -> Result<Self> {
+        Self::from_name(name)
+    }
+}
+
+impl TryFrom<String> for PixelFormat {
+    type Error = Error;
+
+    fn try_from(name: String) -> Result<Self> {
+        Self::from_name(&name)
+    }
+}
+
+impl From<PixelFormat> for String {
+    fn from(format: PixelFormat) -> String {
+        format.name()
     }
 }
 
@@ -196,7 +219,7 @@ impl RawFrame {
             if u32::from(max) >= 1u32 << bits {
                 return Err(Error::in_file(
                     path,
-                    format!("sample {max} exceeds {bits} bits (pass the right --pixel-format)"),
+                    format!("sample {max} exceeds {bits} bits (is the pixel format right?)"),
                 ));
             }
             return Ok(Self { layout: format.family.layout(), bits, pixels });

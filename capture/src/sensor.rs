@@ -3,12 +3,14 @@
 //! polarizers' finite extinction ratio.
 
 use crate::mosaic::{bayer_channel, SensorLayout, POLARIZER_OFFSETS};
-use crate::RawFrame;
+use crate::{PixelFormat, RawFrame, Result};
 use rayon::prelude::*;
+use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::polarization::POLARIZER_ANGLES_DEG;
+use rmvp_dataset::rng::Rng;
 use rmvp_dataset::{Image, Stokes};
-use rmvp_render::rng::Rng;
 use serde::{Deserialize, Serialize};
+use std::path::Path;
 
 /// Sensor parameters (defaults: Sony IMX250 as in the FLIR Blackfly S datasheet and EMVA
 /// figures: 12 bits, about 10 500 e- full well, 2.3 e- read noise).
@@ -146,6 +148,43 @@ impl SensorModel {
     }
 }
 
+/// The description of simulated raw frames (`sensor.json` beside them): what the frames are
+/// and how their processed Stokes relate to the rendered light.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SensorRecord {
+    /// Pixel format of the frame files.
+    pub pixel_format: PixelFormat,
+    /// Frame width, sensor pixels.
+    pub width: usize,
+    /// Frame height, sensor pixels.
+    pub height: usize,
+    /// The sensor that exposed them.
+    pub model: SensorModel,
+    /// [`SensorModel::stokes_gain`]: processed Stokes (dark frame subtracted) divided by it are
+    /// the rendered Stokes.
+    pub stokes_gain: f32,
+}
+
+/// The file name of a [`SensorRecord`] beside the frames.
+pub const SENSOR_FILE: &str = "sensor.json";
+
+impl SensorRecord {
+    /// The record of frames of `width x height` in `pixel_format` exposed by `model`.
+    pub fn new(model: SensorModel, pixel_format: PixelFormat, width: usize, height: usize) -> Self {
+        Self { pixel_format, width, height, stokes_gain: model.stokes_gain(), model }
+    }
+
+    /// Read `path`.
+    pub fn read(path: &Path) -> Result<Self> {
+        Ok(read_json(path, "a sensor record")?)
+    }
+
+    /// Write `path` atomically.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        Ok(write_json(path, self)?)
+    }
+}
+
 /// A Poisson sample of mean `lambda`: exact (Knuth) below 30, normal approximation above.
 fn poisson(rng: &mut Rng, lambda: f32) -> f32 {
     if lambda >= 30.0 {
@@ -177,6 +216,21 @@ mod tests {
             assert!((mean - lambda as f64).abs() < 0.05 * lambda as f64 + 0.02, "{lambda}: mean {mean}");
             assert!((var - lambda as f64).abs() < 0.08 * lambda as f64 + 0.05, "{lambda}: var {var}");
         }
+    }
+
+    #[test]
+    fn sensor_records_read_back_what_they_wrote() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join(SENSOR_FILE);
+        let model =
+            SensorModel { exposure: 0.37, gain_db: 2.5, extinction_ratio: Some(150.0), ..SensorModel::default() };
+        let record = SensorRecord::new(model, PixelFormat::BAYER_RG_POLARIZED_12P, 384, 320);
+        record.write(&path).unwrap();
+        assert_eq!(SensorRecord::read(&path).unwrap(), record);
+        assert!((record.stokes_gain - 0.37 * 10f32.powf(2.5 / 20.0)).abs() < 1e-6);
+        std::fs::write(&path, r#"{"pixel_format": "RGB8"}"#).unwrap();
+        let err = SensorRecord::read(&path).unwrap_err().to_string();
+        assert!(err.contains(SENSOR_FILE) && err.contains("RGB8"), "{err}");
     }
 
     #[test]

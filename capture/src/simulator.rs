@@ -12,10 +12,12 @@ use crate::raw::PixelFormat;
 use crate::sensor::SensorModel;
 use crate::{Error, Result};
 use aravis_sys as ffi;
+use rmvp_calib::board::BoardSpec;
+use rmvp_calib::lab::{calibration_cameras, calibration_parts, lab_environment, LabSetup};
 use rmvp_dataset::{Camera, Mesh, Stokes};
 use rmvp_render::pbrdf::{Interface, Lobes};
-use rmvp_render::rig::{framing_distance, rig_intrinsics, Rig};
-use rmvp_render::{default_mesh, render_view, EnvMap, Object, Settings};
+use rmvp_render::rig::{framing_distance, rig_intrinsics, RigKind};
+use rmvp_render::{default_mesh, render_view, EnvMap, Object, Part, Settings};
 use std::ffi::{c_void, CString};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
@@ -97,6 +99,23 @@ pub struct SimulatorConfig {
     /// Fraction of GVSP packets the camera drops on purpose (0 to 1): frames then arrive
     /// incomplete, as on a congested link.
     pub lost_packet_ratio: f64,
+    /// What stands in front of the camera.
+    pub setup: SimulatedSetup,
+}
+
+/// What the simulated camera looks at.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum SimulatedSetup {
+    /// The object alone on a motorised turntable (two rings of poses), world frame = the
+    /// object's (+Y up).
+    #[default]
+    Turntable,
+    /// The simulated lab: the object on a calibration board on a textured table, the camera on
+    /// two rings around it; world frame = the board's (mm, z up). Poses are turntable positions.
+    Lab(LabSetup),
+    /// A calibration session: the board alone, moved in front of the camera at many tilts
+    /// (one pose per turntable position); world frame = the board's.
+    Calibration(BoardSpec),
 }
 
 impl Default for SimulatorConfig {
@@ -111,6 +130,7 @@ impl Default for SimulatorConfig {
             pixel_formats: PIXEL_FORMATS.iter().map(|(n, _)| n.to_string()).collect(),
             noise: true,
             lost_packet_ratio: 0.0,
+            setup: SimulatedSetup::Turntable,
         }
     }
 }
@@ -123,6 +143,8 @@ pub struct SimulatedScene {
     env: EnvMap,
     /// Camera of each turntable pose.
     pub cameras: Vec<Camera>,
+    /// The subject in the world frame (`None` for a calibration session).
+    pub subject: Option<Mesh>,
     settings: Settings,
 }
 
@@ -133,18 +155,45 @@ impl SimulatedScene {
             Some(path) => Mesh::read(path)?,
             None => default_mesh(),
         };
-        let object = Object::new(&mesh, Interface::Dielectric(1.5), Lobes::Plastic)?;
         let (w, h) = ((SENSOR_WIDTH / 2) as u32, (SENSOR_HEIGHT / 2) as u32);
         let k = rig_intrinsics(w, h);
-        let distance = framing_distance(&k, w, h, mesh.radius() as f64, 0.85);
-        let rig = Rig::Turntable { views: config.views.max(1), elevations: vec![10.0, 35.0] };
-        let cameras = rig.cameras(k, w, h, distance, config.seed);
+        let views = config.views.max(1);
+        let interface = Interface::Dielectric(1.5);
+        let (parts, env, cameras, subject) = match &config.setup {
+            SimulatedSetup::Turntable => {
+                let distance = framing_distance(&k, w, h, mesh.radius() as f64, 0.85);
+                let cameras = RigKind::Turntable.rig(views).cameras(k, w, h, distance, config.seed);
+                (
+                    vec![Part::subject(mesh.clone(), interface, Lobes::Plastic)],
+                    EnvMap::procedural(),
+                    cameras,
+                    Some(mesh),
+                )
+            }
+            SimulatedSetup::Lab(setup) => {
+                let lab = setup.build(&mesh, interface)?;
+                let cameras = setup.cameras(&lab, views, k, w, h);
+                let subject = setup.object.then(|| lab.subject.clone());
+                (lab.parts, lab_environment(EnvMap::procedural()), cameras, subject)
+            }
+            SimulatedSetup::Calibration(board) => {
+                let cameras = calibration_cameras(board, views, k, w, h, config.seed);
+                (calibration_parts(board)?, lab_environment(EnvMap::procedural()), cameras, None)
+            }
+        };
         Ok(Self {
-            object,
-            env: EnvMap::procedural(),
+            object: Object::from_parts(parts)?,
+            env,
             cameras,
+            subject,
             settings: Settings { spp: config.spp, seed: config.seed },
         })
+    }
+
+    /// What the centre ray of every pixel of pose `view` hits: the subject's mask, depth and
+    /// normals (the ground truth of that view's geometry).
+    pub fn geometry(&self, view: usize) -> rmvp_render::GeometryMaps {
+        rmvp_render::geometry_maps(&self.object, &self.cameras[view])
     }
 
     /// Render pose `view`: linear RGB Stokes at 1224x1024 (the ground truth of that view).
@@ -222,6 +271,24 @@ struct Shared {
     noise: bool,
     seed: u64,
     stop: AtomicBool,
+    /// Rendering ahead runs here, at a lower scheduling priority than streaming: a busy
+    /// renderer must not starve the thread that sends the frames.
+    renderer: rayon::ThreadPool,
+}
+
+/// A thread pool for rendering ahead whose threads run at nice 10 (Linux: per thread).
+fn background_pool() -> Result<rayon::ThreadPool> {
+    rayon::ThreadPoolBuilder::new()
+        .thread_name(|i| format!("simulated camera renderer {i}"))
+        .start_handler(|_| {
+            // SAFETY: plain system calls on the calling thread.
+            unsafe {
+                let tid = libc::syscall(libc::SYS_gettid) as libc::id_t;
+                libc::setpriority(libc::PRIO_PROCESS, tid, 10);
+            }
+        })
+        .build()
+        .map_err(|e| Error::Unsupported(format!("cannot start the simulated camera's renderer: {e}")))
 }
 
 impl Shared {
@@ -265,7 +332,7 @@ impl Shared {
         if self.poses.lock().expect("poses")[view].is_some() {
             return;
         }
-        let stokes = Arc::new(self.scene.render(view));
+        let stokes = Arc::new(self.renderer.install(|| self.scene.render(view)));
         self.poses.lock().expect("poses")[view] = Some(stokes);
     }
 
@@ -424,6 +491,7 @@ impl SimulatedCamera {
             noise: config.noise,
             seed: config.seed,
             stop: AtomicBool::new(false),
+            renderer: background_pool()?,
         });
         shared.ensure_rendered(0);
         // SAFETY: `shared` lives in the returned value, which stops the camera (and with it

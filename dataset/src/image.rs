@@ -119,6 +119,19 @@ impl<T: Copy> Image<T> {
     }
 }
 
+impl<T: Copy> Image<T> {
+    /// A single-channel image repeated into three channels.
+    pub fn channel_to_rgb(&self) -> Image<T> {
+        assert_eq!(self.channels, 1, "channel_to_rgb takes a one-channel image");
+        Image {
+            width: self.width,
+            height: self.height,
+            channels: 3,
+            data: self.data.iter().flat_map(|&v| [v, v, v]).collect(),
+        }
+    }
+}
+
 impl Image<f32> {
     /// Per-pixel mean over channels, as a single-channel image.
     pub fn channel_mean(&self) -> Image<f32> {

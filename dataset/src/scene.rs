@@ -16,6 +16,15 @@ pub enum Split {
     Eval,
 }
 
+impl std::fmt::Display for Split {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Split::Train => "train",
+            Split::Eval => "eval",
+        })
+    }
+}
+
 /// Stokes images `S0, S1, S2` of one view, linear radiance, in the image frame
 /// (see [`crate::polarization`]). All three have the same size and channel count (3 for RGB).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -29,6 +38,29 @@ pub struct Stokes {
 }
 
 impl Stokes {
+    /// The Stokes images of four linear images behind polarizers at 0, 45, 90 and 135 degrees
+    /// ([`polarization::stokes_from_four`] at every sample); they must agree in size and
+    /// channels.
+    pub fn from_polarizer_images(images: [&Image<f32>; 4]) -> Result<Self> {
+        for (image, deg) in images.iter().zip(polarization::POLARIZER_ANGLES_DEG).skip(1) {
+            let what = format!("polarizer images 0 and {deg}");
+            images[0].check_same_size(image, &what)?;
+            if image.channels() != images[0].channels() {
+                return Err(Error::invalid(format!("{what} have different channel counts")));
+            }
+        }
+        let (w, h, c) = (images[0].width(), images[0].height(), images[0].channels());
+        let mut s = [Image::new(w, h, c), Image::new(w, h, c), Image::new(w, h, c)];
+        for k in 0..w * h * c {
+            let v = polarization::stokes_from_four(images.map(|i| i.data()[k]));
+            for (component, value) in s.iter_mut().zip(v) {
+                component.data_mut()[k] = value;
+            }
+        }
+        let [s0, s1, s2] = s;
+        Ok(Stokes { s0, s1, s2 })
+    }
+
     /// Check sizes and finiteness.
     pub fn validate(&self) -> Result<()> {
         for (name, other) in [("S1", &self.s1), ("S2", &self.s2)] {

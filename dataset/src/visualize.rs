@@ -76,6 +76,24 @@ pub fn aop_picture(aop: &Image<f32>, dop: &Image<f32>, mask: Option<&Image<u8>>)
     out
 }
 
+/// Unit normals (3 channels, any frame) as an 8-bit RGB picture: `(n + 1) / 2` of full scale,
+/// black where the normal is zero (background). Every normal picture rmvp writes comes from
+/// here, so that a release's pictures agree.
+pub fn normal_picture(normals: &Image<f32>) -> Image<u8> {
+    let data = normals
+        .data()
+        .chunks_exact(normals.channels())
+        .flat_map(|n| {
+            if n.iter().all(|&v| v == 0.0) {
+                [0; 3]
+            } else {
+                [n[0], n[1], n[2]].map(|v| ((v + 1.0) * 127.5).round().clamp(0.0, 255.0) as u8)
+            }
+        })
+        .collect();
+    Image::from_vec(normals.width(), normals.height(), 3, data).expect("size kept")
+}
+
 /// Shrink an 8-bit image by an integer `factor`, averaging each `factor x factor` block.
 pub fn downsample(image: &Image<u8>, factor: usize) -> Image<u8> {
     let f = factor.max(1);
@@ -130,6 +148,12 @@ mod tests {
         for code in [0u8, 1, 10, 100, 200, 255] {
             assert_eq!(srgb_encode(srgb_to_linear(code as f32 / 255.0)), code);
         }
+    }
+
+    #[test]
+    fn normal_pictures_map_unit_normals_and_black_background() {
+        let normals = Image::from_vec(3, 1, 3, vec![0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0, 0.0, 0.0]).unwrap();
+        assert_eq!(normal_picture(&normals).data(), &[128, 128, 255, 0, 0, 0, 0, 128, 128]);
     }
 
     #[test]

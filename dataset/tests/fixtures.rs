@@ -3,7 +3,7 @@
 
 use nalgebra::{Matrix3x4, Point3};
 use rmvp_dataset::io::{exr, npy, png};
-use rmvp_dataset::layout::{canonical, nersp, read_scene, write_scene, Layout};
+use rmvp_dataset::layout::{nersp, read_scene, write_scene, Layout};
 use rmvp_dataset::polarization::{aop_to_u16, stokes_from_four};
 use rmvp_dataset::{Camera, Mesh, Scene};
 use rmvp_testkit::fixture_scenes as fixtures;
@@ -188,8 +188,8 @@ fn nersp_layout_round_trips_through_ours_bit_exactly() {
         let tmp = tempfile::tempdir().unwrap();
         let (ours, back) = (tmp.path().join("ours"), tmp.path().join("back"));
         let original = read_scene(&dir).unwrap();
-        write_scene(&original, &ours, Layout::Canonical).unwrap();
-        assert_eq!(Layout::detect(&ours).unwrap(), Layout::Canonical);
+        write_scene(&original, &ours, Layout::Rmvp).unwrap();
+        assert_eq!(Layout::detect(&ours).unwrap(), Layout::Rmvp);
         let via_ours = read_scene(&ours).unwrap();
         assert!(via_ours == original, "{}: scene changed through our layout", dir.display());
         write_scene(&via_ours, &back, Layout::Nersp).unwrap();
@@ -202,6 +202,6 @@ fn nersp_layout_round_trips_through_ours_bit_exactly() {
         assert_eq!(files_below(&back).len(), files_below(&dir).len(), "extra files written");
         let again: Scene = read_scene(&back).unwrap();
         assert!(again == original, "{}: scene changed through NeRSP -> rmvp -> NeRSP", dir.display());
-        assert!(canonical::read(&ours).is_ok());
+        assert!(rmvp_dataset::layout::rmvp::read(&ours).is_ok());
     }
 }

@@ -2,8 +2,9 @@
 //! the reconstruction's unit sphere (the scene's `scale_mat` maps it to the world).
 
 use crate::volume::Ray;
+use crate::{Error, Result};
 use nalgebra::{Matrix3, Matrix4, Point3, Vector3};
-use rmvp_dataset::{Camera, Error, Result, Scene, Split};
+use rmvp_dataset::{Camera, Scene, Split};
 
 /// Maps between the world and the unit sphere the SDF lives in.
 #[derive(Clone, Debug)]
@@ -19,13 +20,11 @@ pub struct Frame {
 impl Frame {
     /// The frame of `scale_mat`, which must be an invertible similarity.
     pub fn new(to_world: Matrix4<f64>) -> Result<Self> {
-        let from_world = to_world
-            .try_inverse()
-            .ok_or_else(|| Error::invalid("scale_mat is singular: the unit sphere cannot be mapped"))?;
+        let from_world = to_world.try_inverse().ok_or(Error::SingularNormalization)?;
         let linear = from_world.fixed_view::<3, 3>(0, 0).into_owned();
         let scale = linear.determinant().cbrt();
         if scale.abs() < 1e-12 {
-            return Err(Error::invalid("scale_mat is degenerate"));
+            return Err(Error::SingularNormalization);
         }
         Ok(Self { to_world, from_world, rotation: linear / scale })
     }
@@ -109,27 +108,27 @@ impl TrainingSet {
         let frame = Frame::new(scene.normalization)?;
         let mut views = Vec::new();
         for view in scene.views.iter().filter(|v| v.split == Split::Train) {
-            let missing = |what: &str| {
-                Error::invalid(format!("view {}: no {what}; reconstruction needs Stokes and masks", view.name))
-            };
+            let missing = |what: &'static str| Error::MissingInput { view: view.name.clone(), what };
             let stokes = view.stokes.as_ref().ok_or_else(|| missing("Stokes images"))?;
             let mask = view.mask.as_ref().ok_or_else(|| missing("mask"))?;
             let (w, h) = stokes.s0.size();
             if stokes.s0.channels() != 3 {
-                return Err(Error::invalid(format!("view {}: Stokes must be RGB", view.name)));
+                return Err(Error::StokesNotRgb { view: view.name.clone(), channels: stokes.s0.channels() });
             }
             if (w, h) != (view.camera.width as usize, view.camera.height as usize) {
-                return Err(Error::invalid(format!(
-                    "view {}: images are {w}x{h} but the camera is {}x{}",
-                    view.name, view.camera.width, view.camera.height
-                )));
+                return Err(Error::SizeMismatch {
+                    view: view.name.clone(),
+                    image: (w, h),
+                    camera: (view.camera.width as usize, view.camera.height as usize),
+                });
             }
-            mask.check_same_size(&stokes.s0, "mask")?;
-            if let Some((x, y, c)) = [&stokes.s0, &stokes.s1, &stokes.s2].iter().find_map(|s| s.first_non_finite()) {
-                return Err(Error::invalid(format!(
-                    "view {}: non-finite Stokes value at pixel ({x}, {y}), channel {c}",
-                    view.name
-                )));
+            if mask.size() != (w, h) {
+                return Err(Error::SizeMismatch { view: view.name.clone(), image: mask.size(), camera: (w, h) });
+            }
+            if let Some((x, y, channel)) =
+                [&stokes.s0, &stokes.s1, &stokes.s2].iter().find_map(|s| s.first_non_finite())
+            {
+                return Err(Error::NonFiniteInput { view: view.name.clone(), x, y, channel });
             }
             let aop = match &view.aop {
                 Some(a) => a.data().to_vec(),
@@ -152,7 +151,7 @@ impl TrainingSet {
             });
         }
         if views.is_empty() {
-            return Err(Error::invalid("the scene has no training views"));
+            return Err(Error::NoTrainingViews);
         }
         let mut s0: Vec<f32> = views
             .iter()
@@ -161,7 +160,7 @@ impl TrainingSet {
             })
             .collect();
         if s0.is_empty() {
-            return Err(Error::invalid("every training mask is empty"));
+            return Err(Error::EmptyMasks);
         }
         let at = (s0.len() as f64 * 0.99) as usize;
         let index = at.min(s0.len() - 1);

@@ -1,11 +1,23 @@
 //! NeRSP reconstruction: an SDF trained by volume rendering of Stokes vectors through a
 //! polarimetric BRDF plus the multi-view AoP tangent-space loss, mask and Eikonal losses.
+//!
+//! - [`engine`]: flat parameters, dense networks, hash grid, encodings, Adam (hand-written
+//!   backward passes); [`model`]: presets, the SDF field and the radiance networks;
+//!   [`pbrdf`]: Fresnel degrees of polarization and azimuths;
+//! - [`samples`]: the field at sample points (finite-difference normals and Laplacians);
+//!   [`volume`]: NeuS sampling, shading and compositing; [`geometric`]: the AoP tangent-space
+//!   loss with visibility; [`losses`]: the loss terms by name;
+//! - [`data`]: the training set in the unit sphere; [`train`]: steps and checkpoints;
+//! - [`extract`]: marching tetrahedra; [`output`]: normal maps and re-rendered Stokes;
+//!   [`reconstruct`]: a whole run in a folder.
 
+#![warn(missing_docs)]
 // Numeric kernels index several arrays with one counter; iterators would hide the formulas.
 #![allow(clippy::needless_range_loop)]
 
 pub mod data;
 pub mod engine;
+pub mod error;
 pub mod extract;
 pub mod geometric;
 pub mod losses;
@@ -13,5 +25,8 @@ pub mod model;
 pub mod output;
 pub mod pbrdf;
 pub mod reconstruct;
+pub mod samples;
 pub mod train;
 pub mod volume;
+
+pub use error::{Error, Result};

@@ -3,13 +3,14 @@
 //! integrated directional encoding), combined into per-sample Stokes vectors by [`crate::pbrdf`].
 
 use crate::engine::encoding::{ide, positional_encoding, IDE_WIDTH};
-use crate::engine::{Activation, HashGrid, Init, Layout, Mlp, MlpCache};
+use crate::engine::{Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
 use crate::pbrdf::{degrees, dot, double_azimuth};
-use rmvp_render::rng::Rng;
+use rmvp_dataset::rng::Rng;
 use serde::{Deserialize, Serialize};
 
 /// The two model presets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Preset {
     /// Hash grid + small MLPs: minutes on a CPU.
@@ -17,6 +18,17 @@ pub enum Preset {
     Fast,
     /// The official NeRSP/NeuS networks (8x256 SDF MLP): hours.
     Paper,
+}
+
+impl Preset {
+    /// Training iterations of a run of this preset unless told otherwise (fast: about 3
+    /// minutes on 2 cores; paper: the official 100k).
+    pub fn default_iterations(self) -> u32 {
+        match self {
+            Preset::Fast => 1000,
+            Preset::Paper => 100_000,
+        }
+    }
 }
 
 /// Network shapes.
@@ -89,7 +101,7 @@ pub struct FieldCache {
 }
 
 impl Field {
-    fn new(layout: &mut Layout, config: &ModelConfig) -> Self {
+    fn new(layout: &mut ParamLayout, config: &ModelConfig) -> Self {
         let grid = config.grid.map(|(levels, log2, base, finest)| HashGrid::new(layout, levels, log2, base, finest));
         let encoded = match &grid {
             Some(g) => g.outputs(),
@@ -221,7 +233,7 @@ fn sigmoid(x: f32) -> f32 {
 }
 
 impl Radiance {
-    fn new(layout: &mut Layout, config: &ModelConfig) -> Self {
+    fn new(layout: &mut ParamLayout, config: &ModelConfig) -> Self {
         let (f, h, d) = (config.features, config.color_hidden, config.color_depth);
         Self {
             diffuse: Mlp::new(layout, 6 + f, h, d, 3, Activation::Relu, None),
@@ -398,22 +410,24 @@ pub struct Model {
     /// Network shapes.
     pub config: ModelConfig,
     /// Layout of the parameter vector.
-    pub layout: Layout,
+    pub layout: ParamLayout,
     /// The SDF field.
     pub field: Field,
     /// The radiance networks.
     pub radiance: Radiance,
-    /// Offset of the variance parameter (`inv_s = exp(10 variance)`).
+    /// Offset of the variance parameter (`inv_s = exp(VARIANCE_SCALE * variance)`).
     pub variance: usize,
 }
 
 /// NeuS's initial variance parameter.
 pub const INITIAL_VARIANCE: f32 = 0.3;
+/// NeuS's sharpness is `s = exp(VARIANCE_SCALE * variance)` (the official code: 10).
+pub const VARIANCE_SCALE: f32 = 10.0;
 
 impl Model {
     /// Build the shapes of `config`.
     pub fn new(config: ModelConfig) -> Self {
-        let mut layout = Layout::default();
+        let mut layout = ParamLayout::default();
         let field = Field::new(&mut layout, &config);
         let radiance = Radiance::new(&mut layout, &config);
         let variance = layout.reserve(1, crate::engine::Group::Variance);
@@ -430,10 +444,10 @@ impl Model {
         params
     }
 
-    /// NeuS's inverse standard deviation `s = exp(10 variance)`.
+    /// NeuS's inverse standard deviation `s = exp(VARIANCE_SCALE variance)`.
     pub fn inv_s(&self, params: &[f32]) -> f32 {
         // Capped at 1e6, but a NaN variance stays NaN (f32::min would hide it).
-        let s = (10.0 * params[self.variance]).exp();
+        let s = (VARIANCE_SCALE * params[self.variance]).exp();
         if s > 1e6 {
             1e6
         } else {

@@ -52,8 +52,3 @@ pub fn render_view(trainer: &Trainer, camera: &Camera) -> RenderedView {
     let [s0, s1, s2] = s;
     RenderedView { stokes: Stokes { s0, s1, s2 }, opacity, normals }
 }
-
-/// An 8-bit picture of world normals (`(n + 1) / 2`, black background).
-pub fn normal_picture(normals: &Image<f32>) -> Image<u8> {
-    normals.map(|v| if v == 0.0 { 0 } else { ((v + 1.0) * 127.5).round().clamp(0.0, 255.0) as u8 })
-}

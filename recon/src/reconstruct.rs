@@ -4,16 +4,17 @@
 use crate::data::TrainingSet;
 use crate::extract::extract_mesh;
 use crate::model::Preset;
-use crate::output::{normal_picture, render_view};
+use crate::output::render_view;
 use crate::train::{StepReport, TrainConfig, Trainer};
+use crate::{Error, Result};
 use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::{exr, png};
-use rmvp_dataset::visualize::{aop_picture, contact_sheet, preview};
-use rmvp_dataset::{Error, Image, Result, Scene, Split};
+use rmvp_dataset::visualize::{aop_picture, contact_sheet, normal_picture, preview};
+use rmvp_dataset::{Image, Scene, Split};
 use std::io::Write;
 use std::path::Path;
 
-/// What the user chose.
+/// What the user chose; [`Options::default`] holds every default of `rmvp recon`.
 #[derive(Clone, Debug)]
 pub struct Options {
     /// Model preset.
@@ -59,10 +60,7 @@ impl Default for Options {
 impl Options {
     /// The training configuration these options give.
     pub fn config(&self) -> TrainConfig {
-        let iterations = self.iterations.unwrap_or(match self.preset {
-            Preset::Fast => 1000,
-            Preset::Paper => 100_000,
-        });
+        let iterations = self.iterations.unwrap_or(self.preset.default_iterations());
         let mut config = TrainConfig::preset(self.preset, iterations);
         config.photometric = self.photometric;
         config.geometric = self.geometric;
@@ -90,7 +88,7 @@ pub fn reconstruct(
     mut on_step: impl FnMut(&StepReport, &Trainer),
 ) -> Result<Trainer> {
     if !options.photometric && !options.geometric {
-        return Err(Error::invalid("both cues are switched off: nothing to train"));
+        return Err(Error::BothCuesOff);
     }
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let config = options.config();
@@ -100,10 +98,7 @@ pub fn reconstruct(
     let mut trainer = if options.resume && checkpoint.exists() {
         let t = Trainer::load_checkpoint(&checkpoint, set)?;
         if t.config != config {
-            return Err(Error::format(
-                &checkpoint,
-                "was written with other settings (preset, iterations or switches); resume with the same ones",
-            ));
+            return Err(Error::CheckpointSettings { path: checkpoint });
         }
         t
     } else {
@@ -127,7 +122,7 @@ pub fn reconstruct(
         }
         budget -= 1;
         let report = trainer.step();
-        let line = serde_json::to_string(&report).map_err(|e| Error::invalid(e.to_string()))?;
+        let line = serde_json::to_string(&report).expect("plain data");
         writeln!(log, "{line}").map_err(|e| Error::io(&log_path, e))?;
         if trainer.iteration.is_multiple_of(options.checkpoint_every) || trainer.iteration == trainer.config.iterations
         {
@@ -146,9 +141,7 @@ pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, mesh_resoluti
     let (model, params) = (&trainer.model, &trainer.params);
     let mesh = extract_mesh(model, params, &lw, mesh_resolution, &trainer.set.frame, trainer.fd_step(&lw));
     if mesh.faces.is_empty() {
-        return Err(Error::invalid(
-            "the trained SDF has no zero crossing inside the unit sphere: no surface to extract",
-        ));
+        return Err(Error::NoSurface);
     }
     mesh.write(&out.join(MESH))?;
     let (normals_dir, stokes_dir) = (out.join("normals"), out.join("stokes"));

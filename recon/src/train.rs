@@ -8,31 +8,19 @@
 use crate::data::TrainingSet;
 use crate::engine::{Adam, AdamConfig};
 use crate::geometric::{tangent_loss, tangents};
-use crate::losses::{curvature, eikonal, l1, mask_bce};
+use crate::losses::{curvature, eikonal, l1, mask_bce, PerTerm, Term};
 use crate::model::{Model, ModelConfig, Preset, STOKES};
 use crate::volume::{sample_depths, Forward, RayGrad, Sampling};
+use crate::{Error, Result};
 use rayon::prelude::*;
 use rmvp_dataset::io::atomic::write_bytes_atomically;
-use rmvp_dataset::{Error, Result};
-use rmvp_render::rng::Rng;
+use rmvp_dataset::rng::Rng;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 /// Loss weights (official NeRSP: photometric 1, geometric 1, mask 1, Eikonal 0.1; curvature is
 /// ours, from Neuralangelo, 0 in the paper preset).
-#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
-pub struct LossWeights {
-    /// L1 on S0, S1, S2.
-    pub photometric: f32,
-    /// AoP tangent-space consistency.
-    pub geometric: f32,
-    /// Mask binary cross-entropy.
-    pub mask: f32,
-    /// Eikonal.
-    pub eikonal: f32,
-    /// Mean absolute SDF Laplacian (Neuralangelo's curvature loss, against hash-grid noise).
-    pub curvature: f32,
-}
+pub type LossWeights = PerTerm<f32>;
 
 /// Everything that defines a training run.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -106,13 +94,12 @@ impl TrainConfig {
             batch_rays,
             sampling,
             adam,
-            weights: LossWeights {
-                photometric: 1.0,
-                geometric: 1.0,
-                mask: 1.0,
-                eikonal: 0.1,
-                curvature: if preset == Preset::Fast { 5e-4 } else { 0.0 },
-            },
+            weights: LossWeights::from_fn(|term| match term {
+                Term::Photometric | Term::Geometric | Term::Mask => 1.0,
+                Term::Eikonal => 0.1,
+                Term::Curvature if preset == Preset::Fast => 5e-4,
+                Term::Curvature => 0.0,
+            }),
             photometric: true,
             geometric: true,
             diffuse_only: 1000.min(iterations / 10),
@@ -131,16 +118,8 @@ pub struct StepReport {
     pub iteration: u32,
     /// Weighted total.
     pub loss: f64,
-    /// Photometric L1 (unweighted).
-    pub photometric: f64,
-    /// Geometric tangent loss (unweighted).
-    pub geometric: f64,
-    /// Mask BCE (unweighted).
-    pub mask: f64,
-    /// Eikonal (unweighted).
-    pub eikonal: f64,
-    /// Curvature (unweighted).
-    pub curvature: f64,
+    /// Each term, unweighted.
+    pub losses: PerTerm<f64>,
     /// NeuS sharpness.
     pub inv_s: f32,
     /// Rays rendered.
@@ -150,17 +129,39 @@ pub struct StepReport {
     /// Learning-rate factor of the schedule.
     pub lr_factor: f32,
     /// What went wrong, if the step was not applied.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub event: Option<String>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub event: Option<StepEvent>,
+}
+
+/// A step that was not applied.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum StepEvent {
+    /// A non-finite loss or gradient: the update was skipped.
+    Skipped,
+    /// Non-finite three times in a row: parameters and optimiser rolled back to the last safe
+    /// state, that of iteration `to`.
+    RolledBack {
+        /// The iteration whose state was restored.
+        to: u32,
+    },
+}
+
+impl std::fmt::Display for StepEvent {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            StepEvent::Skipped => f.write_str("non-finite loss or gradient: step skipped"),
+            StepEvent::RolledBack { to } => write!(
+                f,
+                "non-finite loss or gradient three times in a row: rolled back to the state of iteration {to}"
+            ),
+        }
+    }
 }
 
 #[derive(Default)]
 struct ChunkSums {
-    photometric: f64,
-    geometric: f64,
-    mask: f64,
-    eikonal: f64,
-    curvature: f64,
+    losses: PerTerm<f64>,
     samples: usize,
 }
 
@@ -245,26 +246,16 @@ impl Trainer {
         let mut sums = ChunkSums::default();
         for (g, s) in results {
             grad.iter_mut().zip(g).for_each(|(a, b)| *a += b);
-            sums.photometric += s.photometric;
-            sums.geometric += s.geometric;
-            sums.mask += s.mask;
-            sums.eikonal += s.eikonal;
-            sums.curvature += s.curvature;
+            for term in Term::ALL {
+                sums.losses[term] += s.losses[term];
+            }
             sums.samples += s.samples;
         }
         let w = &self.config.weights;
         let mut report = StepReport {
             iteration: it,
-            photometric: sums.photometric,
-            geometric: sums.geometric,
-            mask: sums.mask,
-            eikonal: sums.eikonal,
-            curvature: sums.curvature,
-            loss: w.photometric as f64 * sums.photometric
-                + w.geometric as f64 * sums.geometric
-                + w.mask as f64 * sums.mask
-                + w.eikonal as f64 * sums.eikonal
-                + w.curvature as f64 * sums.curvature,
+            losses: sums.losses,
+            loss: sums.losses.iter().map(|(term, value)| w[term] as f64 * value).sum(),
             inv_s: self.model.inv_s(&self.params),
             rays: batch.len(),
             samples: sums.samples,
@@ -277,12 +268,10 @@ impl Trainer {
                 let (params, adam, at) = self.safe.clone();
                 self.params = params;
                 self.adam = adam;
-                report.event = Some(format!(
-                    "non-finite loss or gradient three times in a row: rolled back to the state of iteration {at}"
-                ));
+                report.event = Some(StepEvent::RolledBack { to: at });
                 self.bad_steps = 0;
             } else {
-                report.event = Some("non-finite loss or gradient: step skipped".into());
+                report.event = Some(StepEvent::Skipped);
             }
             self.iteration += 1;
             return report;
@@ -312,15 +301,15 @@ impl Trainer {
         let depths = sample_depths(&self.model, &self.params, level_weight, &rays, self.config.sampling, jitter);
         let fwd = Forward::run(&self.model, &self.params, level_weight, &rays, &depths, fd_step, warm);
         let w = &self.config.weights;
-        let mut sums = ChunkSums { samples: fwd.depths.len(), ..Default::default() };
+        let mut sums = ChunkSums { samples: fwd.samples(), ..Default::default() };
         let mut grads = vec![RayGrad::default(); rays.len()];
         let mut surface = Vec::new();
         for (r, (&(v, p), out)) in batch.iter().zip(&fwd.rays).enumerate() {
             let view = &set.views[v as usize];
             let inside = view.mask[p as usize];
             let (loss, d) = mask_bce(out.opacity, inside);
-            sums.mask += loss as f64 / norm.rays as f64;
-            grads[r].opacity = w.mask * d / norm.rays;
+            sums.losses[Term::Mask] += loss as f64 / norm.rays as f64;
+            grads[r].opacity = w[Term::Mask] * d / norm.rays;
             if !inside {
                 continue;
             }
@@ -330,8 +319,8 @@ impl Trainer {
                 for k in 0..used {
                     // Mean over the colour channels, summed over S0, S1, S2.
                     let (loss, d) = l1(out.stokes[k], target[k]);
-                    sums.photometric += loss as f64 / 3.0 / norm.masked as f64;
-                    grads[r].stokes[k] = w.photometric * d / 3.0 / norm.masked;
+                    sums.losses[Term::Photometric] += loss as f64 / 3.0 / norm.masked as f64;
+                    grads[r].stokes[k] = w[Term::Photometric] * d / 3.0 / norm.masked;
                 }
             }
             if use_geometric && out.opacity > 0.5 {
@@ -345,27 +334,28 @@ impl Trainer {
             let views = tangents(set, &self.model, &self.params, level_weight, &points, &normals);
             for ((r, _, n), ts) in surface.iter().zip(&views) {
                 let (loss, dn) = tangent_loss(*n, ts);
-                sums.geometric += loss as f64 / norm.masked as f64;
-                grads[*r].normal = dn.map(|d| d * w.geometric / norm.masked);
+                sums.losses[Term::Geometric] += loss as f64 / norm.masked as f64;
+                grads[*r].normal = dn.map(|d| d * w[Term::Geometric] / norm.masked);
             }
         }
         // Eikonal on every sample's finite-difference gradient.
-        let mut d_gradients = vec![0f32; fwd.gradients.len()];
-        for (g, d) in fwd.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)) {
+        let mut d_gradients = vec![0f32; fwd.field.gradients.len()];
+        for (g, d) in fwd.field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)) {
             let (loss, dg) = eikonal([g[0], g[1], g[2]]);
-            sums.eikonal += loss as f64 / norm.samples as f64;
+            sums.losses[Term::Eikonal] += loss as f64 / norm.samples as f64;
             for k in 0..3 {
-                d[k] = w.eikonal * dg[k] / norm.samples;
+                d[k] = w[Term::Eikonal] * dg[k] / norm.samples;
             }
         }
         // Curvature on every sample's finite-difference Laplacian.
         let d_laplacians: Vec<f32> = fwd
+            .field
             .laplacians
             .iter()
             .map(|&l| {
                 let (loss, d) = curvature(l);
-                sums.curvature += loss as f64 / norm.samples as f64;
-                w.curvature * d / norm.samples
+                sums.losses[Term::Curvature] += loss as f64 / norm.samples as f64;
+                w[Term::Curvature] * d / norm.samples
             })
             .collect();
         let mut grad = vec![0f32; self.params.len()];
@@ -382,7 +372,7 @@ impl Trainer {
             adam_steps: self.adam.steps,
             parameters: self.params.len(),
         })
-        .map_err(|e| Error::invalid(e.to_string()))?;
+        .expect("plain data");
         let mut bytes = Vec::with_capacity(16 + header.len() + 12 * self.params.len());
         bytes.extend_from_slice(CHECKPOINT_MAGIC);
         bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
@@ -392,14 +382,14 @@ impl Trainer {
                 bytes.extend_from_slice(&x.to_le_bytes());
             }
         }
-        write_bytes_atomically(path, &bytes)
+        Ok(write_bytes_atomically(path, &bytes)?)
     }
 
     /// Restore a run from a checkpoint written by [`Trainer::save_checkpoint`]; the training
     /// set must be the one it was trained on.
     pub fn load_checkpoint(path: &Path, set: TrainingSet) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-        let bad = |m: &str| Error::format(path, m);
+        let bytes = std::fs::read(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+        let bad = |m: &str| Error::BadCheckpoint { path: path.to_path_buf(), problem: m.to_string() };
         if bytes.len() < 16 || &bytes[..8] != CHECKPOINT_MAGIC {
             return Err(bad("not an rmvp checkpoint"));
         }

@@ -1,10 +1,12 @@
 //! NeuS volume rendering inside the unit sphere: coarse samples, hierarchical up-sampling with
 //! fixed sharpness, and alpha compositing of per-sample Stokes vectors, normals and depths, with
-//! the backward pass. Normals are central finite differences of the SDF (Neuralangelo), so each
-//! sample evaluates the field 7 times and no second-order gradient is needed.
+//! the backward pass. A forward pass is three steps: the field at the samples
+//! ([`FieldSamples`]: SDF, finite-difference normals and Laplacians, features), shading (the
+//! radiance networks and the pBRDF: per-sample Stokes), compositing along each ray.
 
-use crate::model::{FieldCache, Model, ShadingCache, ShadingInput, STOKES};
+use crate::model::{Model, ShadingCache, ShadingInput, STOKES, VARIANCE_SCALE};
 use crate::pbrdf::dot;
+use crate::samples::{FieldGrad, FieldSamples};
 
 /// A camera ray in the unit-sphere frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -187,49 +189,112 @@ pub struct RayGrad {
     pub normal: [f32; 3],
 }
 
+/// The samples of a batch of rays, flattened: where each ray's samples start, their depths,
+/// positions, view directions and the rays' Stokes frames (one row per sample).
+struct FlatSamples {
+    spans: Vec<(usize, usize)>,
+    depths: Vec<f32>,
+    points: Vec<f32>,
+    view: Vec<f32>,
+    frame_x: Vec<f32>,
+    frame_y: Vec<f32>,
+}
+
+impl FlatSamples {
+    fn new(rays: &[Ray], depths: &[Vec<f32>]) -> Self {
+        let mut flat = FlatSamples {
+            spans: Vec::with_capacity(rays.len()),
+            depths: Vec::new(),
+            points: Vec::new(),
+            view: Vec::new(),
+            frame_x: Vec::new(),
+            frame_y: Vec::new(),
+        };
+        for (ray, ts) in rays.iter().zip(depths) {
+            flat.spans.push((flat.depths.len(), ts.len()));
+            for &t in ts {
+                flat.depths.push(t);
+                flat.points.extend(ray.at(t));
+                flat.view.extend(ray.dir.map(|d| -d));
+                flat.frame_x.extend(ray.frame_x);
+                flat.frame_y.extend(ray.frame_y);
+            }
+        }
+        flat
+    }
+}
+
+/// Per-sample state of alpha compositing, kept for the backward pass.
+#[derive(Default)]
+struct Compositing {
+    /// Opacity (alpha) of each sample before clamping, and after.
+    alpha_raw: Vec<f32>,
+    alpha: Vec<f32>,
+    /// `sigmoid(s * sdf)`.
+    sigma: Vec<f32>,
+    transmittance: Vec<f32>,
+    /// Compositing weights.
+    weights: Vec<f32>,
+}
+
+fn composite(
+    spans: &[(usize, usize)],
+    depths: &[f32],
+    sdf: &[f32],
+    inv_s: f32,
+    stokes: &[f32],
+    normals: &[f32],
+) -> (Vec<RayOutput>, Compositing) {
+    let n = sdf.len();
+    let sigma: Vec<f32> = sdf.iter().map(|&s| sigmoid(s * inv_s)).collect();
+    let (mut alpha_raw, mut alpha, mut transmittance, mut weights) =
+        (vec![0f32; n], vec![0f32; n], vec![0f32; n], vec![0f32; n]);
+    let mut outputs = Vec::with_capacity(spans.len());
+    for &(start, count) in spans {
+        let mut trans = 1.0f32;
+        let mut o = RayOutput::default();
+        for i in start..start + count {
+            transmittance[i] = trans;
+            if i + 1 == start + count {
+                break;
+            }
+            let raw = (sigma[i] - sigma[i + 1] + 1e-5) / (sigma[i] + 1e-5);
+            alpha_raw[i] = raw;
+            alpha[i] = raw.clamp(0.0, 1.0);
+            let w = trans * alpha[i];
+            weights[i] = w;
+            for k in 0..STOKES {
+                o.stokes[k] += w * stokes[STOKES * i + k];
+            }
+            for k in 0..3 {
+                o.normal[k] += w * normals[3 * i + k];
+            }
+            o.opacity += w;
+            o.depth += w * depths[i];
+            trans *= 1.0 - alpha[i];
+        }
+        outputs.push(o);
+    }
+    (outputs, Compositing { alpha_raw, alpha, sigma, transmittance, weights })
+}
+
 /// One forward pass over a set of rays, with everything the backward pass needs.
 pub struct Forward {
     /// Per-ray outputs.
     pub rays: Vec<RayOutput>,
-    /// First sample of each ray and the number of samples.
-    pub spans: Vec<(usize, usize)>,
-    /// Sample depths (flattened).
-    pub depths: Vec<f32>,
-    /// Sample SDF values.
-    pub sdf: Vec<f32>,
-    /// Finite-difference SDF gradients (n x 3).
-    pub gradients: Vec<f32>,
-    /// Finite-difference SDF Laplacians (mean curvature x 2 on an SDF), from the same 7 values.
-    pub laplacians: Vec<f32>,
-    /// Unit normals (n x 3).
-    pub normals: Vec<f32>,
+    /// The field at every sample (SDF, gradients, normals, Laplacians, features).
+    pub field: FieldSamples,
     /// Per-sample Stokes (n x 9).
     pub stokes: Vec<f32>,
-    /// Per-sample opacity (alpha) before clamping, and after.
-    alpha_raw: Vec<f32>,
-    alpha: Vec<f32>,
-    sigma: Vec<f32>,
-    transmittance: Vec<f32>,
-    /// Compositing weights.
-    pub weights: Vec<f32>,
-    points: Vec<f32>,
-    features: Vec<f32>,
-    view: Vec<f32>,
-    frame_x: Vec<f32>,
-    frame_y: Vec<f32>,
-    field_cache: FieldCache,
+    samples: FlatSamples,
+    compositing: Compositing,
     shading_cache: ShadingCache,
     inv_s: f32,
-    /// Finite-difference step.
-    pub step: f32,
 }
-
-/// The six finite-difference offsets, in the order the field evaluates them.
-const OFFSETS: [(usize, f32); 6] = [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)];
 
 impl Forward {
     /// Render `rays` at sample `depths` (from [`sample_depths`]); `fd_step` is the
-    /// finite-difference step of the normals.
+    /// finite-difference step of the normals; `diffuse_only` switches the specular lobe off.
     #[allow(clippy::too_many_arguments)]
     pub fn run(
         model: &Model,
@@ -240,117 +305,19 @@ impl Forward {
         fd_step: f32,
         diffuse_only: bool,
     ) -> Self {
-        let mut spans = Vec::with_capacity(rays.len());
-        let mut flat_depths = Vec::new();
-        let mut points = Vec::new();
-        let (mut view, mut frame_x, mut frame_y) = (Vec::new(), Vec::new(), Vec::new());
-        for (ray, ts) in rays.iter().zip(depths) {
-            spans.push((flat_depths.len(), ts.len()));
-            for &t in ts {
-                flat_depths.push(t);
-                points.extend(ray.at(t));
-                view.extend(ray.dir.map(|d| -d));
-                frame_x.extend(ray.frame_x);
-                frame_y.extend(ray.frame_y);
-            }
-        }
-        let n = flat_depths.len();
-        let mut all = Vec::with_capacity(7 * 3 * n);
-        all.extend_from_slice(&points);
-        for (axis, sign) in OFFSETS {
-            for p in points.chunks_exact(3) {
-                let mut q = [p[0], p[1], p[2]];
-                q[axis] += sign * fd_step;
-                all.extend(q);
-            }
-        }
-        let mut field_cache = FieldCache::default();
-        let out = model.field.forward(params, &all, level_weight, &mut field_cache);
-        let width = model.field.outputs();
-        let sdf: Vec<f32> = (0..n).map(|i| out[i * width]).collect();
-        let features: Vec<f32> = (0..n).flat_map(|i| out[i * width + 1..(i + 1) * width].iter().copied()).collect();
-        let mut gradients = vec![0f32; 3 * n];
-        let mut normals = vec![0f32; 3 * n];
-        let mut laplacians = vec![0f32; n];
-        for i in 0..n {
-            let neighbours: f32 = (1..7).map(|b| out[(b * n + i) * width]).sum();
-            laplacians[i] = (neighbours - 6.0 * sdf[i]) / (fd_step * fd_step);
-            for axis in 0..3 {
-                let plus = out[((1 + 2 * axis) * n + i) * width];
-                let minus = out[((2 + 2 * axis) * n + i) * width];
-                gradients[3 * i + axis] = (plus - minus) / (2.0 * fd_step);
-            }
-            let g = &gradients[3 * i..3 * i + 3];
-            let len = dot([g[0], g[1], g[2]], [g[0], g[1], g[2]]).sqrt().max(1e-8);
-            for axis in 0..3 {
-                normals[3 * i + axis] = g[axis] / len;
-            }
-        }
+        let samples = FlatSamples::new(rays, depths);
+        let field = FieldSamples::evaluate(model, params, level_weight, samples.points.clone(), fd_step);
         let mut shading_cache = ShadingCache::default();
-        let input = ShadingInput {
-            points: &points,
-            normals: &normals,
-            features: &features,
-            view: &view,
-            frame_x: &frame_x,
-            frame_y: &frame_y,
-        };
-        let stokes = model.radiance.shade(params, &input, diffuse_only, &mut shading_cache);
-
+        let stokes = model.radiance.shade(params, &shading_input(&samples, &field), diffuse_only, &mut shading_cache);
         let inv_s = model.inv_s(params);
-        let sigma: Vec<f32> = sdf.iter().map(|&s| sigmoid(s * inv_s)).collect();
-        let (mut alpha_raw, mut alpha, mut transmittance, mut weights) =
-            (vec![0f32; n], vec![0f32; n], vec![0f32; n], vec![0f32; n]);
-        let mut outputs = Vec::with_capacity(rays.len());
-        for &(start, count) in &spans {
-            let mut trans = 1.0f32;
-            let mut o = RayOutput::default();
-            for i in start..start + count {
-                transmittance[i] = trans;
-                if i + 1 == start + count {
-                    break;
-                }
-                let raw = (sigma[i] - sigma[i + 1] + 1e-5) / (sigma[i] + 1e-5);
-                alpha_raw[i] = raw;
-                alpha[i] = raw.clamp(0.0, 1.0);
-                let w = trans * alpha[i];
-                weights[i] = w;
-                for k in 0..STOKES {
-                    o.stokes[k] += w * stokes[STOKES * i + k];
-                }
-                for k in 0..3 {
-                    o.normal[k] += w * normals[3 * i + k];
-                }
-                o.opacity += w;
-                o.depth += w * flat_depths[i];
-                trans *= 1.0 - alpha[i];
-            }
-            outputs.push(o);
-        }
-        Self {
-            rays: outputs,
-            spans,
-            depths: flat_depths,
-            sdf,
-            gradients,
-            laplacians,
-            normals,
-            stokes,
-            alpha_raw,
-            alpha,
-            sigma,
-            transmittance,
-            weights,
-            points,
-            features,
-            view,
-            frame_x,
-            frame_y,
-            field_cache,
-            shading_cache,
-            inv_s,
-            step: fd_step,
-        }
+        let (rays, compositing) =
+            composite(&samples.spans, &samples.depths, &field.sdf, inv_s, &stokes, &field.normals);
+        Self { rays, field, stokes, samples, compositing, shading_cache, inv_s }
+    }
+
+    /// Samples evaluated (over all rays).
+    pub fn samples(&self) -> usize {
+        self.samples.depths.len()
     }
 
     /// Backward pass: `ray_grads` per ray, `d_gradients` (n x 3, e.g. from the Eikonal loss) on
@@ -367,12 +334,14 @@ impl Forward {
         d_laplacians: &[f32],
         grad: &mut [f32],
     ) {
-        let n = self.depths.len();
+        let n = self.samples();
+        let c = &self.compositing;
+        let (normals, sdf) = (&self.field.normals, &self.field.sdf);
         let mut d_stokes = vec![0f32; STOKES * n];
         let mut d_normals = vec![0f32; 3 * n];
         let mut d_sdf = vec![0f32; n];
         let mut d_inv_s = 0f32;
-        for (&(start, count), g) in self.spans.iter().zip(ray_grads) {
+        for (&(start, count), g) in self.samples.spans.iter().zip(ray_grads) {
             // Value of each sample's weight to the loss.
             let value = |i: usize| -> f32 {
                 let mut v = g.opacity;
@@ -380,70 +349,62 @@ impl Forward {
                     v += g.stokes[k] * self.stokes[STOKES * i + k];
                 }
                 for k in 0..3 {
-                    v += g.normal[k] * self.normals[3 * i + k];
+                    v += g.normal[k] * normals[3 * i + k];
                 }
                 v
             };
             let mut rest = 0f32; // R_{i+1} = sum_{k > i} w_k v_k / T_{i+1}
             for i in (start..start + count - 1).rev() {
                 let v = value(i);
-                let a = self.alpha[i];
-                let d_alpha = self.transmittance[i] * (v - rest);
+                let a = c.alpha[i];
+                let d_alpha = c.transmittance[i] * (v - rest);
                 rest = a * v + (1.0 - a) * rest;
-                let w = self.weights[i];
+                let w = c.weights[i];
                 for k in 0..STOKES {
                     d_stokes[STOKES * i + k] += w * g.stokes[k];
                 }
                 for k in 0..3 {
                     d_normals[3 * i + k] += w * g.normal[k];
                 }
-                let raw = self.alpha_raw[i];
+                let raw = c.alpha_raw[i];
                 if !(0.0..=1.0).contains(&raw) {
                     continue;
                 }
-                let (s0, s1) = (self.sigma[i], self.sigma[i + 1]);
+                let (s0, s1) = (c.sigma[i], c.sigma[i + 1]);
                 let d_s0 = d_alpha * s1 / ((s0 + 1e-5) * (s0 + 1e-5));
                 let d_s1 = -d_alpha / (s0 + 1e-5);
                 for (j, ds) in [(i, d_s0), (i + 1, d_s1)] {
-                    let slope = self.sigma[j] * (1.0 - self.sigma[j]);
+                    let slope = c.sigma[j] * (1.0 - c.sigma[j]);
                     d_sdf[j] += ds * slope * self.inv_s;
-                    d_inv_s += ds * slope * self.sdf[j];
+                    d_inv_s += ds * slope * sdf[j];
                 }
             }
         }
-        grad[model.variance] += d_inv_s * 10.0 * self.inv_s;
+        grad[model.variance] += d_inv_s * VARIANCE_SCALE * self.inv_s;
 
-        let input = ShadingInput {
-            points: &self.points,
-            normals: &self.normals,
-            features: &self.features,
-            view: &self.view,
-            frame_x: &self.frame_x,
-            frame_y: &self.frame_y,
-        };
+        let input = shading_input(&self.samples, &self.field);
         let (dn_shading, d_features) =
             model.radiance.shade_backward(params, &input, &self.shading_cache, &d_stokes, grad);
-        let width = model.field.outputs();
-        let mut d_out = vec![0f32; 7 * n * width];
-        let h2 = self.step * self.step;
-        for i in 0..n {
-            d_out[i * width] = d_sdf[i] - 6.0 * d_laplacians[i] / h2;
-            for b in 1..7 {
-                d_out[(b * n + i) * width] += d_laplacians[i] / h2;
-            }
-            d_out[i * width + 1..(i + 1) * width].copy_from_slice(&d_features[(width - 1) * i..(width - 1) * (i + 1)]);
-            let nv = [self.normals[3 * i], self.normals[3 * i + 1], self.normals[3 * i + 2]];
-            let dn = [0, 1, 2].map(|k| d_normals[3 * i + k] + dn_shading[3 * i + k]);
-            let g = &self.gradients[3 * i..3 * i + 3];
-            let len = dot([g[0], g[1], g[2]], [g[0], g[1], g[2]]).sqrt().max(1e-8);
-            let along = dot(dn, nv);
-            for axis in 0..3 {
-                let dg = (dn[axis] - nv[axis] * along) / len + d_gradients[3 * i + axis];
-                let d = dg / (2.0 * self.step);
-                d_out[((1 + 2 * axis) * n + i) * width] += d;
-                d_out[((2 + 2 * axis) * n + i) * width] -= d;
-            }
-        }
-        model.field.backward(params, &self.field_cache, level_weight, &d_out, grad);
+        d_normals.iter_mut().zip(&dn_shading).for_each(|(a, b)| *a += b);
+        let d = FieldGrad {
+            sdf: &d_sdf,
+            normals: &d_normals,
+            features: &d_features,
+            gradients: d_gradients,
+            laplacians: d_laplacians,
+        };
+        self.field.backward(model, params, level_weight, &d, grad);
+    }
+}
+
+/// What the radiance networks see at the samples.
+fn shading_input<'a>(samples: &'a FlatSamples, field: &'a FieldSamples) -> ShadingInput<'a> {
+    ShadingInput {
+        points: &field.points,
+        normals: &field.normals,
+        features: &field.features,
+        view: &samples.view,
+        frame_x: &samples.frame_x,
+        frame_y: &samples.frame_y,
     }
 }

@@ -3,12 +3,12 @@
 
 #![allow(clippy::needless_range_loop)]
 
+use rmvp_dataset::rng::Rng;
 use rmvp_recon::engine::encoding::{ide, IDE_WIDTH};
-use rmvp_recon::engine::{Activation, HashGrid, Init, Layout, Mlp, MlpCache};
+use rmvp_recon::engine::{Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
 use rmvp_recon::model::{Model, ModelConfig, Preset, ShadingCache, ShadingInput, STOKES};
 use rmvp_recon::pbrdf::{degrees, double_azimuth};
 use rmvp_recon::volume::{sample_depths, Forward, Ray, RayGrad, Sampling};
-use rmvp_render::rng::Rng;
 
 /// Compare `analytic` with central differences of `loss` on `indices` of `params`; the
 /// relative error of the whole vector must stay under `tolerance`.
@@ -55,7 +55,7 @@ fn weighted(out: &[f32], w: &[f32]) -> f64 {
 
 #[test]
 fn mlp_with_skip_and_softplus() {
-    let mut layout = Layout::default();
+    let mut layout = ParamLayout::default();
     let mlp = Mlp::new(&mut layout, 9, 16, 4, 5, Activation::Softplus(10.0), Some(2));
     let mut params = vec![0f32; layout.len()];
     mlp.init(&mut params, Init::Default, &mut Rng::for_pixel(3, 0, 0));
@@ -74,7 +74,7 @@ fn mlp_with_skip_and_softplus() {
 
 #[test]
 fn mlp_relu_and_geometric_init() {
-    let mut layout = Layout::default();
+    let mut layout = ParamLayout::default();
     let mlp = Mlp::new(&mut layout, 15, 32, 3, 4, Activation::Relu, None);
     let mut params = vec![0f32; layout.len()];
     mlp.init(&mut params, Init::Default, &mut Rng::for_pixel(1, 0, 0));
@@ -90,7 +90,7 @@ fn mlp_relu_and_geometric_init() {
     });
 
     // Geometric initialisation: the first output starts close to |x| - 0.5.
-    let mut layout = Layout::default();
+    let mut layout = ParamLayout::default();
     let sdf = Mlp::new(&mut layout, 3 + 36, 256, 8, 1, Activation::Softplus(100.0), Some(4));
     let mut params = vec![0f32; layout.len()];
     sdf.init(&mut params, Init::Sphere(0.5), &mut Rng::for_pixel(9, 0, 0));
@@ -112,7 +112,7 @@ fn mlp_relu_and_geometric_init() {
 
 #[test]
 fn hash_grid_tables() {
-    let mut layout = Layout::default();
+    let mut layout = ParamLayout::default();
     let grid = HashGrid::new(&mut layout, 4, 10, 4, 40);
     let mut params = vec![0f32; layout.len()];
     grid.init(&mut params, &mut Rng::for_pixel(2, 0, 0));
@@ -293,7 +293,7 @@ fn volume_rendering_end_to_end() {
         for (o, g) in f.rays.iter().zip(&grads) {
             l += weighted(&o.stokes, &g.stokes) + (o.opacity * g.opacity) as f64 + weighted(&o.normal, &g.normal);
         }
-        l + weighted(&f.gradients, &d_gradients) + weighted(&f.laplacians, &d_laplacians)
+        l + weighted(&f.field.gradients, &d_gradients) + weighted(&f.field.laplacians, &d_laplacians)
     };
     let f = Forward::run(&model, &params, &lw, &rays, &depths, 0.02, false);
     assert!(f.rays.iter().any(|o| o.opacity > 0.1), "rays should cross the initial sphere");

@@ -6,7 +6,9 @@ use rmvp_dataset::{Scene, Split};
 use rmvp_recon::data::TrainingSet;
 use rmvp_recon::extract::extract_mesh;
 use rmvp_recon::model::Preset;
-use rmvp_recon::train::{TrainConfig, Trainer};
+use rmvp_recon::reconstruct::{reconstruct, Options};
+use rmvp_recon::train::{StepEvent, TrainConfig, Trainer};
+use rmvp_recon::Error;
 use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::rig::{framing_distance, look_at, rig_intrinsics, Rig};
 use rmvp_render::shapes::icosphere;
@@ -90,8 +92,9 @@ fn resume_continues_bit_for_bit() {
     // A truncated checkpoint is refused with the file's name.
     let bytes = std::fs::read(&path).unwrap();
     std::fs::write(&path, &bytes[..bytes.len() - 10]).unwrap();
-    let err = Trainer::load_checkpoint(&path, set).err().expect("truncated checkpoint refused").to_string();
-    assert!(err.contains("checkpoint.bin") && err.contains("truncated"), "{err}");
+    let err = Trainer::load_checkpoint(&path, set).err().expect("truncated checkpoint refused");
+    assert!(matches!(&err, Error::BadCheckpoint { path: p, problem } if *p == path && problem.contains("truncated")));
+    assert!(err.to_string().contains("checkpoint.bin"), "{err}");
 }
 
 #[test]
@@ -107,13 +110,30 @@ fn non_finite_steps_are_skipped_then_rolled_back() {
     trainer.params[variance] = f32::NAN;
     for k in 0..2 {
         let r = trainer.step();
-        assert!(r.event.as_deref().is_some_and(|e| e.contains("skipped")), "step {k}: {r:?}");
+        assert_eq!(r.event, Some(StepEvent::Skipped), "step {k}: {r:?}");
     }
     let r = trainer.step();
-    assert!(r.event.as_deref().is_some_and(|e| e.contains("rolled back")), "{r:?}");
+    assert_eq!(r.event, Some(StepEvent::RolledBack { to: 0 }), "{r:?}");
     assert!(trainer.params.iter().all(|p| p.is_finite()));
     // Rolled back to the last safe state: the initial parameters, before the first good step.
     assert!(trainer.params != good);
     let r = trainer.step();
     assert!(r.event.is_none() && r.loss.is_finite(), "{r:?}");
+}
+
+#[test]
+fn unusable_inputs_are_refused_by_kind() {
+    let mut scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let both_off = Options { photometric: false, geometric: false, ..Options::default() };
+    assert!(matches!(reconstruct(&scene, dir.path(), &both_off, |_, _| {}), Err(Error::BothCuesOff)));
+    scene.views[1].mask = None;
+    let err = TrainingSet::from_scene(&scene, 8).err().unwrap();
+    assert!(matches!(&err, Error::MissingInput { view, what: "mask" } if view == "001"), "{err}");
+    scene.views[1].mask = scene.views[0].mask.clone();
+    scene.views[2].stokes.as_mut().unwrap().s1.data_mut()[7] = f32::NAN;
+    let err = TrainingSet::from_scene(&scene, 8).err().unwrap();
+    assert!(matches!(&err, Error::NonFiniteInput { view, x: 2, y: 0, channel: 1 } if view == "002"), "{err}");
+    scene.views.iter_mut().for_each(|v| v.split = Split::Eval);
+    assert!(matches!(TrainingSet::from_scene(&scene, 8), Err(Error::NoTrainingViews)));
 }

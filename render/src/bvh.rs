@@ -357,7 +357,7 @@ fn build(nodes: &mut Vec<Node>, order: &mut [u32], offset: usize, boxes: &[Bound
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::Rng;
+    use rmvp_dataset::rng::Rng;
 
     /// A random triangle soup.
     fn soup(n: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {

@@ -6,7 +6,8 @@
 //! in u, clamped in v); sampling follows the piecewise-constant luminance times `sin(theta)`.
 
 use crate::math::Vec3;
-use rmvp_dataset::{Error, Image, Result};
+use crate::{Error, Result};
+use rmvp_dataset::Image;
 use std::f32::consts::{PI, TAU};
 
 /// An environment map ready for lookups and importance sampling.
@@ -20,6 +21,8 @@ pub struct EnvMap {
     col_cdf: Vec<f32>,
     /// Per texel, probability mass.
     texel_pmf: Vec<f32>,
+    /// Rows of the rotation from the world frame to the map's frame (+Y up), if not identity.
+    to_map: Option<[Vec3; 3]>,
 }
 
 impl EnvMap {
@@ -27,10 +30,10 @@ impl EnvMap {
     pub fn new(image: &Image<f32>) -> Result<Self> {
         let (w, h, c) = (image.width(), image.height(), image.channels());
         if c < 3 || w < 1 || h < 1 {
-            return Err(Error::invalid(format!("environment map must be RGB, got {w}x{h}x{c}")));
+            return Err(Error::EnvironmentNotRgb { width: w, height: h, channels: c });
         }
         if let Some((x, y, ch)) = image.first_non_finite() {
-            return Err(Error::invalid(format!("environment map is not finite at ({x}, {y}) channel {ch}")));
+            return Err(Error::EnvironmentNotFinite { x, y, channel: ch });
         }
         let rgb: Vec<[f32; 3]> =
             image.data().chunks_exact(c).map(|p| [p[0].max(0.0), p[1].max(0.0), p[2].max(0.0)]).collect();
@@ -60,7 +63,7 @@ impl EnvMap {
             row_cdf[j + 1] = acc as f32;
         }
         row_cdf[h] = 1.0;
-        Ok(Self { width: w, height: h, rgb, row_cdf, col_cdf, texel_pmf })
+        Ok(Self { width: w, height: h, rgb, row_cdf, col_cdf, texel_pmf, to_map: None })
     }
 
     /// A constant environment of radiance `rgb`.
@@ -73,14 +76,39 @@ impl EnvMap {
         Self::new(&procedural_image()).expect("finite")
     }
 
+    /// The same light in a world whose directions `d` are `rotation * d` in the map's frame
+    /// (the map's +Y up; e.g. a world with +Z up, as a calibration board's frame).
+    pub fn with_rotation(mut self, rotation: &nalgebra::Matrix3<f64>) -> Self {
+        let row = |i: usize| Vec3::new(rotation[(i, 0)] as f32, rotation[(i, 1)] as f32, rotation[(i, 2)] as f32);
+        self.to_map = Some([row(0), row(1), row(2)]);
+        self
+    }
+
+    /// A world direction in the map's frame.
+    fn world_to_map(&self, d: Vec3) -> Vec3 {
+        match &self.to_map {
+            Some([x, y, z]) => Vec3::new(x.dot(d), y.dot(d), z.dot(d)),
+            None => d,
+        }
+    }
+
+    /// A direction in the map's frame in the world.
+    fn map_to_world(&self, d: Vec3) -> Vec3 {
+        match &self.to_map {
+            Some([x, y, z]) => *x * d.x + *y * d.y + *z * d.z,
+            None => d,
+        }
+    }
+
     /// Radiance arriving from direction `d` (unit, pointing away from the scene).
     pub fn eval(&self, d: Vec3) -> [f32; 3] {
-        let (u, v) = uv(d);
+        let (u, v) = uv(self.world_to_map(d));
         self.eval_uv(u, v)
     }
 
     /// Radiance and solid-angle density of [`EnvMap::sample`] at direction `d`, in one lookup.
     pub fn eval_and_pdf(&self, d: Vec3) -> ([f32; 3], f32) {
+        let d = self.world_to_map(d);
         let (u, v) = uv(d);
         (self.eval_uv(u, v), self.pdf_uv(u, v, d.y))
     }
@@ -100,6 +128,7 @@ impl EnvMap {
 
     /// Solid-angle density of [`EnvMap::sample`] at direction `d`.
     pub fn pdf(&self, d: Vec3) -> f32 {
+        let d = self.world_to_map(d);
         let (u, v) = uv(d);
         self.pdf_uv(u, v, d.y)
     }
@@ -125,7 +154,7 @@ impl EnvMap {
         let du = ((r2 - cdf[i]) / (cdf[i + 1] - cdf[i]).max(1e-30)).clamp(0.0, 1.0);
         let (u, v) = ((i as f32 + du) / self.width as f32, (j as f32 + dv) / self.height as f32);
         let d = direction(u, v);
-        (d, self.pdf_uv(u, v, d.y), self.eval_uv(u, v))
+        (self.map_to_world(d), self.pdf_uv(u, v, d.y), self.eval_uv(u, v))
     }
 }
 
@@ -172,7 +201,7 @@ fn direction(u: f32, v: f32) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::Rng;
+    use rmvp_dataset::rng::Rng;
 
     #[test]
     fn mapping_round_trips_and_puts_the_top_row_up() {
@@ -183,6 +212,20 @@ mod tests {
         assert!(direction(0.3, 0.0).y > 0.999);
         // Mitsuba: u = 0 looks down -Z, u = 0.25 down +X.
         assert!(direction(0.0, 0.5).z < -0.999 && direction(0.25, 0.5).x > 0.999);
+    }
+
+    #[test]
+    fn a_rotated_map_looks_up_the_rotated_direction() {
+        // Board frame (+Z up) to the map's frame (+Y up): a quarter turn about x.
+        let rotation = nalgebra::Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0);
+        let (base, turned) = (EnvMap::procedural(), EnvMap::procedural().with_rotation(&rotation));
+        let up_in_board = Vec3::new(0.0, 0.0, 1.0);
+        assert_eq!(turned.eval(up_in_board), base.eval(Vec3::new(0.0, 1.0, 0.0)));
+        let d = Vec3::new(0.3, -0.5, 0.81).normalize();
+        let r = Vec3::new(d.x, d.z, -d.y);
+        assert_eq!(turned.eval_and_pdf(d), base.eval_and_pdf(r));
+        let (sampled, pdf, _) = turned.sample(0.3, 0.7);
+        assert!((turned.pdf(sampled) - pdf).abs() <= 1e-3 * pdf);
     }
 
     #[test]

@@ -270,7 +270,7 @@ mod tests {
         let f =
             ShadingFrame { n: Vec3::new(0.0, 0.0, 1.0), v, x: Vec3::new(1.0, 0.0, 0.0), y: Vec3::new(0.0, 1.0, 0.0) };
         // E[g(l) / pdf(l)] over BRDF samples equals the integral of g: take g = 1 on the hemisphere.
-        let mut rng = crate::rng::Rng::for_pixel(2, 0, 0);
+        let mut rng = rmvp_dataset::rng::Rng::for_pixel(2, 0, 0);
         let n = 200_000;
         let mut sum = 0.0f64;
         for _ in 0..n {

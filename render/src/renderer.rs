@@ -6,9 +6,9 @@ use crate::envmap::EnvMap;
 use crate::math::Vec3;
 use crate::object::{Object, SurfacePoint};
 use crate::pbrdf::{ShadingFrame, StokesRgb};
-use crate::rng::Rng;
 use rayon::prelude::*;
 use rmvp_dataset::polarization::{intensity, POLARIZER_ANGLES_DEG};
+use rmvp_dataset::rng::Rng;
 use rmvp_dataset::{visualize, Camera, Image, PolarizerImages, Split, Stokes, View};
 
 /// Sampling settings.
@@ -31,12 +31,14 @@ impl Default for Settings {
 pub struct RenderedView {
     /// Linear Stokes (RGB) in each pixel's Stokes frame.
     pub stokes: Stokes,
-    /// 255 where at least half of the pixel's samples hit the object.
+    /// 255 where at least half of the pixel's samples hit the subject.
     pub mask: Image<u8>,
     /// z-depth of the pixel-centre ray's hit; 0 on background.
     pub depth: Image<f32>,
     /// World-frame shading normal at the pixel-centre hit; 0 on background.
     pub normals: Image<f32>,
+    /// Which part the pixel-centre ray hits first: 1 + its index, 0 for none.
+    pub parts: Image<u8>,
 }
 
 /// Render one view. `view` selects the random streams (use the view's index).
@@ -66,7 +68,7 @@ pub fn render_view(object: &Object, env: &EnvMap, camera: &Camera, settings: Set
                     let dir = rays.direction(i as f32 + rng.next_f32(), j as f32 + rng.next_f32());
                     match object.intersect(camera_center, dir) {
                         Some(hit) => {
-                            hits += 1;
+                            hits += u32::from(hit.subject);
                             let frame = ShadingFrame { n: hit.n, v: -dir, x, y };
                             let value = shade(object, env, &hit, &frame, &mut rng);
                             for (a, v) in acc.iter_mut().flatten().zip(value.iter().flatten()) {
@@ -89,19 +91,21 @@ pub fn render_view(object: &Object, env: &EnvMap, camera: &Camera, settings: Set
             }
         });
     let [s0, s1, s2] = s;
-    let GeometryMaps { depth, normals, .. } = geometry_maps(object, camera);
-    RenderedView { stokes: Stokes { s0, s1, s2 }, mask, depth, normals }
+    let GeometryMaps { depth, normals, parts, .. } = geometry_maps(object, camera);
+    RenderedView { stokes: Stokes { s0, s1, s2 }, mask, depth, normals, parts }
 }
 
 /// What the ray through each pixel's centre hits.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GeometryMaps {
-    /// 255 where the centre ray hits the object.
+    /// 255 where the centre ray hits the subject first.
     pub mask: Image<u8>,
-    /// z-depth of the hit; 0 on background.
+    /// z-depth of the subject's hit; 0 elsewhere.
     pub depth: Image<f32>,
-    /// World-frame shading normal at the hit (facing the camera); 0 on background.
+    /// World-frame shading normal at the subject's hit (facing the camera); 0 elsewhere.
     pub normals: Image<f32>,
+    /// Which part the centre ray hits first: 1 + its index, 0 for none.
+    pub parts: Image<u8>,
 }
 
 /// Ray-cast the pixel centres of a camera: mask, depth and normal maps.
@@ -110,24 +114,28 @@ pub fn geometry_maps(object: &Object, camera: &Camera) -> GeometryMaps {
     let mut mask = Image::new(w, h, 1);
     let mut depth = Image::new(w, h, 1);
     let mut normals = Image::new(w, h, 3);
+    let mut parts = Image::new(w, h, 1);
     let camera_z = Vec3::new(camera.r[(2, 0)] as f32, camera.r[(2, 1)] as f32, camera.r[(2, 2)] as f32);
     let camera_center = Vec3::from_f64(&camera.center().coords);
     mask.data_mut()
         .par_chunks_mut(w)
         .zip(depth.data_mut().par_chunks_mut(w))
         .zip(normals.data_mut().par_chunks_mut(3 * w))
+        .zip(parts.data_mut().par_chunks_mut(w))
         .enumerate()
-        .for_each(|(j, ((m, d), n))| {
+        .for_each(|(j, (((m, d), n), p))| {
             for i in 0..w {
                 let ray = camera.pixel_ray(i as u32, j as u32);
-                if let Some(hit) = object.intersect(camera_center, Vec3::from_f64(&ray.direction)) {
+                let Some(hit) = object.intersect(camera_center, Vec3::from_f64(&ray.direction)) else { continue };
+                p[i] = (hit.part + 1).min(255) as u8;
+                if hit.subject {
                     m[i] = 255;
                     d[i] = (hit.p - camera_center).dot(camera_z);
                     n[3 * i..3 * i + 3].copy_from_slice(&[hit.n.x, hit.n.y, hit.n.z]);
                 }
             }
         });
-    GeometryMaps { mask, depth, normals }
+    GeometryMaps { mask, depth, normals, parts }
 }
 
 /// Camera ray directions in `f32`: through `R^T K^-1 (u, v, 1)` for pinhole cameras, through

@@ -1,9 +1,10 @@
 //! Camera rigs: the real camera's intrinsics, look-at poses, sparse views on a sphere
 //! (SMVP3D-like), turntable rings (RMVP3D-like) and explicit pose lists.
 
-use crate::rng::Rng;
+use crate::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
-use rmvp_dataset::{Camera, Error, Result};
+use rmvp_dataset::rng::Rng;
+use rmvp_dataset::Camera;
 use serde::Deserialize;
 use std::path::Path;
 
@@ -41,6 +42,30 @@ pub fn look_at(
 pub fn framing_distance(k: &Matrix3<f64>, width: u32, height: u32, radius: f64, fill: f64) -> f64 {
     let half = (width.min(height) as f64 / 2.0) / k[(0, 0)].max(k[(1, 1)]);
     radius / (fill * half.atan()).sin()
+}
+
+/// The rigs a simulated capture can use, by name: each is a [`Rig`] for a number of views.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum RigKind {
+    /// Sparse random views on a sphere (SMVP3D-like).
+    #[default]
+    Sphere,
+    /// Two turntable rings, at 10 and 35 degrees of elevation (RMVP3D-like).
+    Turntable,
+}
+
+/// Elevations of the lab turntable's two rings, degrees.
+pub const TURNTABLE_ELEVATIONS_DEG: [f64; 2] = [10.0, 35.0];
+
+impl RigKind {
+    /// The rig of this kind with `views` cameras.
+    pub fn rig(self, views: usize) -> Rig {
+        match self {
+            RigKind::Sphere => Rig::Sphere { views },
+            RigKind::Turntable => Rig::Turntable { views, elevations: TURNTABLE_ELEVATIONS_DEG.to_vec() },
+        }
+    }
 }
 
 /// How to place the cameras.
@@ -123,9 +148,9 @@ struct PoseRecord {
 /// (world to camera) or `{"eye": [..], "target": [..]}` (+Y up), each optionally with its own
 /// intrinsics `"k": [[..]]` (else `k`).
 pub fn read_poses(path: &Path, k: Matrix3<f64>, width: u32, height: u32) -> Result<Vec<Camera>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = std::fs::read_to_string(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
     let poses: Vec<PoseRecord> =
-        serde_json::from_str(&text).map_err(|e| Error::format(path, format!("bad pose list: {e}")))?;
+        serde_json::from_str(&text).map_err(|e| rmvp_dataset::Error::format(path, format!("bad pose list: {e}")))?;
     poses
         .into_iter()
         .enumerate()
@@ -139,7 +164,7 @@ pub fn read_poses(path: &Path, k: Matrix3<f64>, width: u32, height: u32) -> Resu
                     look_at(k, Vector3::from(eye), Vector3::from(target), Vector3::y(), width, height)
                 }
             };
-            camera.validate().map_err(|e| Error::format(path, format!("pose {i}: {e}")))?;
+            camera.validate().map_err(|source| Error::BadPose { path: path.to_path_buf(), index: i, source })?;
             Ok(camera)
         })
         .collect()
@@ -174,8 +199,9 @@ mod tests {
         assert_eq!(cams[1].k[(0, 0)], 50.0);
         assert_eq!(cams[0].k, rig_intrinsics(64, 48));
         std::fs::write(&path, r#"[{"r": [[2,0,0],[0,1,0],[0,0,1]], "t": [0, 0, 4]}]"#).unwrap();
-        let err = read_poses(&path, rig_intrinsics(64, 48), 64, 48).unwrap_err().to_string();
-        assert!(err.contains("pose 0") && err.contains("not a rotation"), "{err}");
+        let err = read_poses(&path, rig_intrinsics(64, 48), 64, 48).unwrap_err();
+        assert!(matches!(err, Error::BadPose { index: 0, .. }), "{err}");
+        assert!(err.to_string().contains("not a rotation"), "{err}");
     }
 
     #[test]

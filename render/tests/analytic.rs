@@ -255,9 +255,9 @@ fn textured_albedo_is_looked_up_at_the_texture_coordinates() {
     }
     // A mesh without texture coordinates cannot take a texture.
     let mut plain = Object::new(&icosphere(1), Interface::Dielectric(1.5), Lobes::Plastic).unwrap();
-    assert!(plain
-        .set_albedo_texture(rmvp_dataset::Image::new(2, 2, 3))
-        .unwrap_err()
-        .to_string()
-        .contains("texture coordinates"));
+    let err = plain.set_albedo_texture(rmvp_dataset::Image::new(2, 2, 3)).unwrap_err();
+    assert!(matches!(err, rmvp_render::Error::NoTextureCoordinates), "{err}");
+    let point_cloud = rmvp_dataset::Mesh { faces: Vec::new(), ..icosphere(1) };
+    let err = Object::new(&point_cloud, Interface::Dielectric(1.5), Lobes::Plastic).err().unwrap();
+    assert!(matches!(err, rmvp_render::Error::NoFaces), "{err}");
 }

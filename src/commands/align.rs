@@ -1,18 +1,15 @@
 //! `rmvp align --scan SCAN --to TARGET -o DIR`: a laser scan onto a reconstruction, by a
-//! similarity (rotation, translation, uniform scale).
+//! similarity (rotation, translation, uniform scale) ([`rmvp_align::align_files`]).
 
 use anyhow::Result;
-use rmvp_align::icp::AlignmentRecord;
-use rmvp_align::{align, IcpOptions};
-use rmvp_dataset::io::write_bytes_atomically;
-use rmvp_dataset::Mesh;
-use serde_json::json;
+use rmvp_align::icp::{ALIGNED_MESH, ALIGNMENT_FILE};
+use rmvp_align::{align_files, IcpOptions};
 use std::path::PathBuf;
 
 /// Arguments of `rmvp align`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// The scan (PLY/OBJ mesh or point cloud), in any units.
+    /// The scan (PLY/OBJ/STL mesh or point cloud), in any units.
     #[arg(long)]
     scan: PathBuf,
     /// The target: a mesh (or a point cloud with normals), e.g. a reconstruction.
@@ -25,37 +22,15 @@ pub struct Args {
     #[arg(long)]
     no_coarse: bool,
     /// Scan points used by the fine stage at most.
-    #[arg(long, default_value_t = 50_000)]
+    #[arg(long, default_value_t = IcpOptions::default().max_scan_points)]
     max_points: usize,
 }
 
 /// Run the command.
 pub fn run(args: Args) -> Result<()> {
-    let (scan, target) = (Mesh::read(&args.scan)?, Mesh::read(&args.to)?);
     let options = IcpOptions { coarse: !args.no_coarse, max_scan_points: args.max_points, ..IcpOptions::default() };
-    let result = align(&scan, &target, &options)?;
+    let result = align_files(&args.scan, &args.to, &args.output, &options)?;
     let t = &result.transform;
-    let mut record = AlignmentRecord::from(t);
-    record.inverse = Some(Box::new(AlignmentRecord::from(&t.inverse())));
-    let report = json!({
-        "scan": args.scan.display().to_string(),
-        "target": args.to.display().to_string(),
-        "scan_to_target": record,
-        "rms_point_to_plane": result.rms,
-        "median_distance": result.median_distance,
-        "inlier_ratio": result.inlier_ratio,
-    });
-    write_bytes_atomically(&args.output.join("alignment.json"), serde_json::to_string_pretty(&report)?.as_bytes())?;
-    let moved = |p: &[f32; 3], f: &dyn Fn(&nalgebra::Vector3<f64>) -> nalgebra::Vector3<f64>| {
-        let q = f(&nalgebra::Vector3::from(p.map(|v| v as f64)));
-        [q.x as f32, q.y as f32, q.z as f32]
-    };
-    let aligned = Mesh {
-        positions: scan.positions.iter().map(|p| moved(p, &|v| t.apply(v))).collect(),
-        normals: scan.normals.as_ref().map(|n| n.iter().map(|p| moved(p, &|v| t.r * v)).collect()),
-        ..scan
-    };
-    aligned.write(&args.output.join("aligned.ply"))?;
     println!(
         "scale {:.6}, rotation {:.3} deg, translation ({:.4}, {:.4}, {:.4})",
         t.s,
@@ -70,6 +45,6 @@ pub fn run(args: Args) -> Result<()> {
         result.median_distance,
         100.0 * result.inlier_ratio
     );
-    println!("wrote {}/alignment.json and aligned.ply", args.output.display());
+    println!("wrote {}/{ALIGNMENT_FILE} and {ALIGNED_MESH}", args.output.display());
     Ok(())
 }

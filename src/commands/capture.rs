@@ -1,12 +1,16 @@
 //! `rmvp capture`: a capture session with the polarization camera (or the simulated one), and
 //! `rmvp cameras` / `rmvp simulate-camera` around it.
 
-use anyhow::{bail, Context, Result};
+use super::board::BoardArgs;
+use anyhow::{Context, Result};
+use rmvp_calib::lab::LabSetup;
 use rmvp_capture::camera::{describe, list_devices, Camera, CameraSettings, TriggerSource};
 use rmvp_capture::preview::{serve, Preview};
 use rmvp_capture::session::positioning::Positioning;
 use rmvp_capture::session::{capture, SessionOptions};
-use rmvp_capture::simulator::{SimulatedCamera, SimulatorConfig};
+use rmvp_capture::simulator::{SimulatedCamera, SimulatedSetup, SimulatorConfig};
+use rmvp_capture::PixelFormat;
+use rmvp_dataset::session::PositioningMode;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Duration;
@@ -48,15 +52,15 @@ pub struct Args {
     #[arg(long)]
     pub resume: bool,
     /// Pixel format by GenICam name (default: negotiated, BayerRGPolarized12p first).
-    #[arg(long)]
-    pub pixel_format: Option<String>,
+    #[arg(long, value_parser = str::parse::<PixelFormat>)]
+    pub pixel_format: Option<PixelFormat>,
     /// Frame rate in Hz (default: as fast as the exposure allows).
     #[arg(long)]
     pub frame_rate: Option<f64>,
     /// How views start: interactive (Enter), timed, trigger (Line0) or turntable (default:
     /// turntable when the camera has one, else interactive).
-    #[arg(long)]
-    pub mode: Option<String>,
+    #[arg(long, value_enum)]
+    pub mode: Option<PositioningMode>,
     /// Seconds between views in timed mode.
     #[arg(long, default_value_t = 3.0)]
     pub interval: f64,
@@ -66,6 +70,9 @@ pub struct Args {
     /// Simulated camera: object mesh (PLY/OBJ; default: the built-in spot).
     #[arg(long, requires = "simulated")]
     pub mesh: Option<PathBuf>,
+    /// Simulated camera: what it looks at.
+    #[command(flatten)]
+    pub scene: SetupArgs,
     /// Seconds to wait for one frame before checking that the camera is still there.
     #[arg(long, default_value_t = 5.0)]
     pub frame_timeout: f64,
@@ -74,7 +81,12 @@ pub struct Args {
 /// Run the command.
 pub fn run(args: Args) -> Result<()> {
     let simulator = if args.simulated {
-        let config = SimulatorConfig { views: args.views, mesh: args.mesh.clone(), ..SimulatorConfig::default() };
+        let config = SimulatorConfig {
+            views: args.views,
+            mesh: args.mesh.clone(),
+            setup: args.scene.setup(),
+            ..SimulatorConfig::default()
+        };
         eprintln!("starting the simulated camera {} (rendering its first view)", config.serial);
         Some(SimulatedCamera::start(&config)?)
     } else {
@@ -84,13 +96,9 @@ pub fn run(args: Args) -> Result<()> {
     let mut camera = Camera::open(selector.as_deref())?;
     let id = camera.identity();
     eprintln!("camera: {} {} serial {} firmware {} ({})", id.vendor, id.model, id.serial, id.firmware, id.protocol);
-    let positioning = match args.mode.as_deref() {
+    let positioning = match args.mode {
         None => Positioning::default_for(&camera),
-        Some("interactive") => Positioning::Interactive,
-        Some("timed") => Positioning::Timed(Duration::from_secs_f64(args.interval)),
-        Some("trigger") => Positioning::HardwareTrigger,
-        Some("turntable") => Positioning::Turntable,
-        Some(other) => bail!("--mode {other}: expected interactive, timed, trigger or turntable"),
+        Some(mode) => Positioning::new(mode, Duration::from_secs_f64(args.interval)),
     };
     let trigger =
         if positioning == Positioning::HardwareTrigger { TriggerSource::Line0 } else { TriggerSource::FreeRun };
@@ -108,7 +116,7 @@ pub fn run(args: Args) -> Result<()> {
         views: args.views,
         dir: args.output.clone(),
         camera: CameraSettings {
-            pixel_format: args.pixel_format.clone(),
+            pixel_format: args.pixel_format.map(|f| f.name()),
             exposure_us: args.exposure,
             gain_db: args.gain,
             frame_rate: args.frame_rate,
@@ -135,6 +143,51 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
+/// What a simulated camera looks at.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum Setup {
+    /// The object alone on a turntable.
+    #[default]
+    Turntable,
+    /// The lab: the object on the calibration board on a textured table, cameras on two rings.
+    Lab,
+    /// A calibration session: the board alone, moved in front of the camera.
+    Calibration,
+}
+
+/// The simulated camera's scene.
+#[derive(clap::Args, Clone, Debug)]
+pub struct SetupArgs {
+    /// What the simulated camera looks at.
+    #[arg(long, value_enum, default_value_t = Setup::default())]
+    pub setup: Setup,
+    /// The board of the lab or calibration setup.
+    #[command(flatten)]
+    pub board: BoardArgs,
+    /// Lab setup: no table under the board.
+    #[arg(long)]
+    pub no_table: bool,
+    /// Lab setup: the empty lab (background plates at the same turntable positions).
+    #[arg(long)]
+    pub no_object: bool,
+}
+
+impl SetupArgs {
+    /// The simulator's setup.
+    pub fn setup(&self) -> SimulatedSetup {
+        match self.setup {
+            Setup::Turntable => SimulatedSetup::Turntable,
+            Setup::Lab => SimulatedSetup::Lab(LabSetup {
+                board: self.board.spec(),
+                table: !self.no_table,
+                object: !self.no_object,
+                ..LabSetup::default()
+            }),
+            Setup::Calibration => SimulatedSetup::Calibration(self.board.spec()),
+        }
+    }
+}
+
 /// Arguments of `rmvp simulate-camera`.
 #[derive(clap::Args, Clone)]
 pub struct SimulateCameraArgs {
@@ -145,16 +198,19 @@ pub struct SimulateCameraArgs {
     #[arg(long, default_value = "127.0.0.1")]
     pub interface: String,
     /// Turntable poses.
-    #[arg(long, default_value_t = 6)]
+    #[arg(long, default_value_t = SimulatorConfig::default().views)]
     pub views: usize,
     /// Object mesh (PLY/OBJ; default: the built-in spot).
     #[arg(long)]
     pub mesh: Option<PathBuf>,
+    /// What it looks at.
+    #[command(flatten)]
+    pub scene: SetupArgs,
     /// Pixel formats offered, comma-separated (default: BayerRGPolarized8/10p/12p/16, BayerRG8/10p/12p/16).
-    #[arg(long, value_delimiter = ',')]
-    pub pixel_formats: Vec<String>,
+    #[arg(long, value_delimiter = ',', value_parser = str::parse::<PixelFormat>)]
+    pub pixel_formats: Vec<PixelFormat>,
     /// Renderer samples per pixel.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = SimulatorConfig::default().spp)]
     pub spp: u32,
     /// No shot or read noise (every frame of a pose identical; fastest).
     #[arg(long)]
@@ -178,10 +234,11 @@ pub fn simulate_camera(args: SimulateCameraArgs) -> Result<()> {
         seed: args.seed,
         noise: !args.noise_free,
         lost_packet_ratio: args.lost_packets,
+        setup: args.scene.setup(),
         ..SimulatorConfig::default()
     };
     if !args.pixel_formats.is_empty() {
-        config.pixel_formats = args.pixel_formats;
+        config.pixel_formats = args.pixel_formats.iter().map(PixelFormat::name).collect();
     }
     let camera = SimulatedCamera::start(&config).context("starting the simulated camera")?;
     eprintln!(

@@ -16,17 +16,17 @@ pub struct Args {
     #[arg(short, long)]
     output: PathBuf,
     /// GenICam pixel format of the frames (for PNG mosaics: the sensor and significant bits).
-    #[arg(long, default_value = "BayerRGPolarized12p")]
-    pixel_format: String,
+    #[arg(long, value_parser = str::parse::<PixelFormat>, default_value = "BayerRGPolarized12p")]
+    pixel_format: PixelFormat,
     /// Frame width in pixels (bare buffers).
     #[arg(long, default_value_t = 2448)]
     width: usize,
     /// Frame height in pixels (bare buffers).
     #[arg(long, default_value_t = 2048)]
     height: usize,
-    /// Demosaicing: bilinear, edge-aware or vng (8-bit only).
-    #[arg(long, default_value = "bilinear")]
-    method: String,
+    /// Demosaicing (VNG: 8-bit frames only).
+    #[arg(long, value_enum, default_value_t = DemosaicMethod::default())]
+    method: DemosaicMethod,
     /// Drop saturated polarizer angles from the Stokes estimate.
     #[arg(long)]
     saturation_aware: bool,
@@ -40,7 +40,7 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(args: Args) -> Result<()> {
-    let format = PixelFormat::from_name(&args.pixel_format)?;
+    let format = args.pixel_format;
     let read = |path: &PathBuf| RawFrame::read(path, format, args.width, args.height);
     let dark = if args.dark.is_empty() {
         None
@@ -49,7 +49,7 @@ pub fn run(args: Args) -> Result<()> {
         Some(mean_frame(&frames)?)
     };
     let processor = FrameProcessor {
-        method: DemosaicMethod::from_name(&args.method)?,
+        method: args.method,
         saturation_aware: args.saturation_aware,
         dark,
         color_correction: args.ccm.map(|m| [[m[0], m[1], m[2]], [m[3], m[4], m[5]], [m[6], m[7], m[8]]]),

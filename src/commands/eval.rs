@@ -1,18 +1,15 @@
-//! `rmvp eval --pred MESH --gt MESH [--scene SCENE] [--json]`.
+//! `rmvp eval --pred MESH --gt MESH [--scene SCENE] [--json]` ([`rmvp_align::evaluate`]).
 
 use anyhow::Result;
-use rmvp_align::{normal_errors, surface_metrics, SurfaceOptions};
-use rmvp_dataset::io::png;
+use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
-use rmvp_dataset::visualize::gray_ramp;
 use rmvp_dataset::Mesh;
-use serde_json::json;
 use std::path::PathBuf;
 
 /// Arguments of `rmvp eval`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Predicted mesh (PLY or OBJ), in the ground truth's frame and units.
+    /// Predicted mesh (PLY, OBJ or STL), in the ground truth's frame and units.
     #[arg(long)]
     pred: PathBuf,
     /// Ground-truth mesh.
@@ -29,7 +26,7 @@ pub struct Args {
     #[arg(long)]
     density: Option<f64>,
     /// Samples per surface at most.
-    #[arg(long, default_value_t = 200_000)]
+    #[arg(long, default_value_t = SurfaceOptions::default().max_samples)]
     max_samples: usize,
     /// Cap distances at this value in the means (DTU: 20 mm).
     #[arg(long)]
@@ -45,33 +42,24 @@ pub struct Args {
 /// Run the command.
 pub fn run(args: Args) -> Result<()> {
     let (pred, gt) = (Mesh::read(&args.pred)?, Mesh::read(&args.gt)?);
+    let defaults = SurfaceOptions::default();
     let options = SurfaceOptions {
-        density: args.density.unwrap_or(f64::INFINITY),
+        density: args.density.unwrap_or(defaults.density),
         max_samples: args.max_samples,
         max_distance: args.max_distance,
         threshold: args.threshold,
-        seed: 0,
+        ..defaults
     };
-    let surface = surface_metrics(&pred, &gt, &options)?;
-    let normals =
-        args.scene.as_ref().map(|dir| read_scene(dir).and_then(|scene| normal_errors(&pred, &scene))).transpose()?;
-    if let (Some(report), Some(dir)) = (&normals, &args.output) {
-        for v in &report.views {
-            png::write_png_u8(
-                &dir.join(format!("{}_normal_error.png", v.view)),
-                &gray_ramp(&v.error_map.map(|e| if e.is_nan() { 0.0 } else { e }), 0.0, 30.0),
-            )?;
-        }
+    let scene = args.scene.as_ref().map(|dir| read_scene(dir)).transpose()?;
+    let evaluation = evaluate(&pred, &gt, scene.as_ref(), &options)?;
+    if let Some(dir) = &args.output {
+        evaluation.write_error_maps(dir)?;
     }
     if args.json {
-        let mut out = serde_json::to_value(&surface)?;
-        if let Some(report) = &normals {
-            out["normal_mae_deg"] = json!(report.mean_mae_deg);
-            out["normal_views"] = serde_json::to_value(&report.views)?;
-        }
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        println!("{}", evaluation.to_json());
         return Ok(());
     }
+    let surface = &evaluation.surface;
     println!("accuracy      {:.6}  (predicted -> ground truth, mean)", surface.accuracy);
     println!("completeness  {:.6}  (ground truth -> predicted, mean)", surface.completeness);
     println!("chamfer       {:.6}", surface.chamfer);
@@ -79,11 +67,11 @@ pub fn run(args: Args) -> Result<()> {
         "F-score       {:.4}  at {:.6} (precision {:.4}, recall {:.4}; {} + {} samples)",
         surface.fscore, surface.threshold, surface.precision, surface.recall, surface.samples[0], surface.samples[1]
     );
-    if let Some(report) = &normals {
-        for v in &report.views {
-            println!("normal MAE    {:>7.3} deg  view {} ({} px)", v.mae_deg, v.view, v.pixels);
-        }
-        println!("normal_mae_deg {:.3}  (mean over {} views)", report.mean_mae_deg, report.views.len());
+    for v in &evaluation.normal_views {
+        println!("normal MAE    {:>7.3} deg  view {} ({} px)", v.mae_deg, v.view, v.pixels);
+    }
+    if let Some(mae) = evaluation.normal_mae_deg {
+        println!("normal_mae_deg {mae:.3}  (mean over {} views)", evaluation.normal_views.len());
     }
     Ok(())
 }

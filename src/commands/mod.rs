@@ -1,14 +1,17 @@
-//! One module per subcommand.
+//! One module per subcommand, and what they share: value parsers, progress bars, and hints
+//! that turn a library error into the command to run next.
 
 pub mod align;
+pub mod board;
+pub mod calibrate;
 pub mod capture;
-pub mod convert;
+pub mod dataset;
 pub mod demo;
 pub mod demosaic;
 pub mod eval;
-pub mod info;
+pub mod masks;
+pub mod poses;
 pub mod recon;
-pub mod render_normals;
 pub mod simulate;
 pub mod stokes;
 
@@ -23,7 +26,28 @@ pub fn parse_numbers<const N: usize>(text: &str) -> Result<[f32; N], String> {
     values.try_into().map_err(|v: Vec<f32>| format!("expected {N} comma-separated numbers, got {}", v.len()))
 }
 
-/// A progress bar over `len` items, labelled `what`.
+/// Parse an image size `WIDTHxHEIGHT`.
+pub fn parse_size(text: &str) -> Result<(u32, u32), String> {
+    let (w, h) = text.split_once('x').ok_or("expected WIDTHxHEIGHT, e.g. 1224x1024")?;
+    let number = |s: &str| s.parse::<u32>().map_err(|e| format!("{s:?}: {e}"));
+    Ok((number(w)?, number(h)?))
+}
+
+/// A visible progress bar over `len` items, labelled `what`.
 pub fn progress(len: u64, what: &str) -> ProgressBar {
-    rmvp_capture::progress_bar(true, len, what)
+    rmvp_dataset::progress::progress_bar(true, len, what)
+}
+
+/// What the user can do next about `error`, in terms of this command line.
+pub fn hint(error: &anyhow::Error) -> Option<&'static str> {
+    use rmvp_capture::Error as Capture;
+    let capture = error.chain().find_map(|e| e.downcast_ref::<Capture>())?;
+    match capture {
+        Capture::Session { .. } | Capture::DiskFull { .. } => {
+            Some("hint: run the same command with --resume to continue the session")
+        }
+        Capture::SessionExists { .. } => Some("hint: pass --resume to continue it, or choose another folder"),
+        Capture::OperatorGone => Some("hint: without an operator at the keyboard, use --mode timed or turntable"),
+        _ => None,
+    }
 }

@@ -1,5 +1,4 @@
-//! `rmvp recon SCENE -o DIR [--preset fast|paper] [--iters N] [--no-geometric] [--no-photometric]
-//! [--resume] [--mesh-res N]`.
+//! `rmvp recon SCENE -o DIR`: NeRSP reconstruction ([`rmvp_recon::reconstruct`]).
 
 use super::progress;
 use anyhow::{Context, Result};
@@ -17,9 +16,9 @@ pub struct Args {
     #[arg(short, long)]
     output: PathBuf,
     /// Model preset: `fast` (hash grid, minutes on a CPU) or `paper` (NeRSP's 8x256 MLP).
-    #[arg(long, default_value = "fast", value_parser = parse_preset)]
+    #[arg(long, value_enum, default_value_t = Options::default().preset)]
     preset: Preset,
-    /// Training iterations (default: 1000 fast, about 3 minutes on 2 cores; 100000 paper).
+    /// Training iterations (default: the preset's; fast 1000, about 3 minutes on 2 cores).
     #[arg(long)]
     iters: Option<u32>,
     /// Photometric cue only (PANDORA-like ablation).
@@ -32,28 +31,20 @@ pub struct Args {
     #[arg(long)]
     resume: bool,
     /// Marching grid cells per axis for the mesh.
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = Options::default().mesh_resolution)]
     mesh_res: usize,
-    /// Rays per iteration (default: 256 fast, 512 paper).
+    /// Rays per iteration (default: the preset's; fast 256, paper 512).
     #[arg(long)]
     batch: Option<usize>,
     /// Iterations between checkpoints.
-    #[arg(long, default_value_t = 500)]
+    #[arg(long, default_value_t = Options::default().checkpoint_every)]
     checkpoint_every: u32,
     /// Random seed.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = Options::default().seed)]
     seed: u64,
     /// Stop after this many iterations in this session (checkpointed; continue with --resume).
     #[arg(long)]
     stop_after: Option<u32>,
-}
-
-fn parse_preset(s: &str) -> Result<Preset, String> {
-    match s {
-        "fast" => Ok(Preset::Fast),
-        "paper" => Ok(Preset::Paper),
-        other => Err(format!("unknown preset {other:?} (fast or paper)")),
-    }
 }
 
 /// Run the command.
@@ -77,10 +68,11 @@ pub fn run(args: Args) -> Result<()> {
         bar.set_position(trainer.iteration as u64);
         match &report.event {
             Some(event) => bar.println(format!("iteration {}: {event}", report.iteration)),
-            None if report.iteration % 10 == 0 => bar.set_message(format!(
-                "loss {:.4} (photo {:.4} geo {:.5} mask {:.4} eik {:.4}) s {:.0}",
-                report.loss, report.photometric, report.geometric, report.mask, report.eikonal, report.inv_s
-            )),
+            None if report.iteration % 10 == 0 => {
+                let terms: Vec<String> =
+                    report.losses.iter().map(|(term, value)| format!("{} {value:.4}", term.name())).collect();
+                bar.set_message(format!("loss {:.4} ({}) s {:.0}", report.loss, terms.join(" "), report.inv_s))
+            }
             None => {}
         }
     })

@@ -12,7 +12,7 @@ use rmvp_dataset::Mesh;
 use rmvp_render::bvh::Bvh;
 use rmvp_render::math::Vec3;
 use rmvp_render::rig::{framing_distance, rig_intrinsics, Rig};
-use rmvp_render::rng::Rng;
+use rmvp_dataset::rng::Rng;
 use std::time::Instant;
 
 fn main() {

@@ -6,18 +6,9 @@
 //! into `views/NNN.partial/`, checksums, rename to `views/NNN/`, then the manifest). A view is
 //! complete exactly when `session.json` lists it; `--resume` continues after the last one.
 //!
-//! Session folder:
-//! ```text
-//! session.json                      manifest (camera, settings, views, SHA-256 of every file)
-//! dark/dark_<t>us.png               mean dark frame per exposure time (16-bit mosaic)
-//! views/NNN/raw/<t>us_<k>.raw       every frame kept, bytes exactly as the camera sent them
-//! views/NNN/view_{000,045,090,135}.png   demosaiced angle images (16-bit, linear)
-//! views/NNN/view_stokes.exr         Stokes S0, S1, S2 (RGB), see `stokes_unit` in the manifest
-//! views/NNN/view_{aop,dop}.{exr,png}, view_s0.png   AoP, DoP and a preview
-//! ```
+//! The session folder and its manifest are described in [`rmvp_dataset::session`].
 
 pub mod hdr;
-pub mod manifest;
 pub mod positioning;
 pub mod storage;
 
@@ -27,9 +18,12 @@ use crate::pipeline::{FrameProcessor, ProcessedFrame};
 use crate::preview::Preview;
 use crate::raw::PixelFormat;
 use crate::{Error, RawFrame, Result};
-use manifest::{utc_now, CameraRecord, DarkRecord, FileRecord, Manifest, SessionSettings, ViewRecord, MANIFEST_FORMAT};
 use positioning::{LastView, Positioning};
 use rmvp_dataset::io::{png, write_bytes_atomically};
+use rmvp_dataset::session::{
+    utc_now, DarkRecord, FileRecord, SessionCamera, SessionManifest, SessionSettings, SessionView, StokesUnit,
+    SESSION_FILE, SESSION_FORMAT,
+};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -105,6 +99,7 @@ struct GrabbedView {
     index: usize,
     captured_at: String,
     temperature_c: Option<f64>,
+    turntable_position: Option<i64>,
     /// Per exposure: the frames' bytes.
     frames: Vec<Vec<Vec<u8>>>,
     dropped: usize,
@@ -134,7 +129,7 @@ pub fn capture(camera: &mut Camera, options: &SessionOptions) -> Result<SessionR
 
     let (darks, dark_dropped) = dark_frames(camera, options, &mut manifest, format)?;
     let start = manifest.views.len();
-    let bar = crate::progress_bar(options.progress, options.views as u64, "views");
+    let bar = rmvp_dataset::progress::progress_bar(options.progress, options.views as u64, "views");
     bar.set_position(start as u64);
     let last = Mutex::new(LastView { done: start, ..LastView::default() });
     let (to_processing, from_acquisition) = sync_channel::<GrabbedView>(QUEUE_DEPTH);
@@ -179,69 +174,60 @@ fn open_manifest(
     options: &SessionOptions,
     settings: &CameraSettings,
     format: PixelFormat,
-) -> Result<Manifest> {
+) -> Result<SessionManifest> {
     let dir = options.dir.as_path();
     let (_, width, height) = camera.frame_format();
     let features: BTreeMap<String, String> =
         RECORDED_FEATURES.iter().filter_map(|f| camera.feature(f).ok().map(|v| (f.to_string(), v))).collect();
     let stokes_unit = if options.exposures_us.len() > 1 {
         let shortest = options.exposures_us.iter().copied().fold(f64::INFINITY, f64::min);
-        format!(
-            "full scale of the HDR-merged frame: full scale at the shortest exposure, {shortest} us, gain {} dB",
-            settings.gain_db
-        )
+        StokesUnit::HdrFullScale { shortest_exposure_us: shortest, gain_db: settings.gain_db }
     } else {
-        format!(
-            "full scale of the {}-bit frame at {} us, gain {} dB",
-            format.bits, options.exposures_us[0], settings.gain_db
-        )
+        StokesUnit::FullScale { bits: format.bits, exposure_us: options.exposures_us[0], gain_db: settings.gain_db }
     };
-    let fresh = Manifest {
-        format: MANIFEST_FORMAT.into(),
+    let fresh = SessionManifest {
+        format: SESSION_FORMAT.into(),
         object: options.object.clone(),
         views_planned: options.views,
         created: utc_now(),
         updated: utc_now(),
-        camera: CameraRecord { identity: camera.identity(), pixel_format: format.name(), width, height, features },
+        camera: SessionCamera { identity: camera.identity(), pixel_format: format.name(), width, height, features },
         settings: SessionSettings {
             camera: settings.clone(),
             exposures_us: options.exposures_us.clone(),
             average: options.average,
             dark_frames: options.dark_frames,
-            positioning: options.positioning.name().into(),
+            positioning: options.positioning.mode(),
             stokes_unit,
         },
         dark: Vec::new(),
         views: Vec::new(),
         complete: false,
     };
-    let exists = dir.join(manifest::MANIFEST_FILE).exists();
+    let exists = dir.join(SESSION_FILE).exists();
     if !options.resume {
         if exists {
-            let old = Manifest::read(dir)?;
-            return Err(Error::in_file(
-                dir,
-                format!(
-                    "already holds a session of {:?} ({} of {} views); pass --resume to continue it, or choose another folder",
-                    old.object,
-                    old.views.len(),
-                    old.views_planned
-                ),
-            ));
+            let old = SessionManifest::read(dir)?;
+            return Err(Error::SessionExists {
+                dir: dir.to_path_buf(),
+                object: old.object,
+                complete: old.views.len(),
+                planned: old.views_planned,
+            });
         }
         std::fs::create_dir_all(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
         return Ok(fresh);
     }
     if !exists {
-        return Err(Error::in_file(dir, "has no session to resume (no session.json)"));
+        return Err(Error::NothingToResume { dir: dir.to_path_buf() });
     }
-    let mut old = Manifest::read(dir)?;
+    let mut old = SessionManifest::read(dir)?;
     old.verify(dir)?;
-    let mismatch = |what: &str, was: String, now: String| {
-        Error::in_file(
-            dir,
-            format!("was captured with {what} {was}; this run has {now}: resume with the same camera and options"),
-        )
+    let mismatch = |what: &str, was: String, now: String| Error::ResumeMismatch {
+        dir: dir.to_path_buf(),
+        what: what.into(),
+        was,
+        now,
     };
     if old.object != fresh.object {
         return Err(mismatch("object", old.object, fresh.object));
@@ -266,7 +252,7 @@ fn open_manifest(
 }
 
 /// Remove what an interrupted run left that the manifest does not list.
-fn clean_incomplete(dir: &Path, manifest: &Manifest) -> Result<()> {
+fn clean_incomplete(dir: &Path, manifest: &SessionManifest) -> Result<()> {
     let views = dir.join("views");
     let Ok(entries) = std::fs::read_dir(&views) else { return Ok(()) };
     for entry in entries.flatten() {
@@ -283,7 +269,7 @@ fn clean_incomplete(dir: &Path, manifest: &Manifest) -> Result<()> {
 fn dark_frames(
     camera: &mut Camera,
     options: &SessionOptions,
-    manifest: &mut Manifest,
+    manifest: &mut SessionManifest,
     format: PixelFormat,
 ) -> Result<(Vec<Option<RawFrame>>, usize)> {
     let dir = options.dir.as_path();
@@ -400,13 +386,14 @@ fn acquire_views(
         options.positioning.prepare(camera, index, options.views, &status)?;
         let captured_at = utc_now();
         let temperature_c = camera.float("DeviceTemperature").ok();
+        let turntable_position = camera.integer("TurntablePositionReached").ok();
         let mut frames = Vec::new();
         let mut dropped = 0;
         for &exposure in &options.exposures_us {
             frames.push(grab_burst(camera, options, exposure, options.average, &mut dropped)?);
         }
         dropped_total += dropped;
-        let view = GrabbedView { index, captured_at, temperature_c, frames, dropped };
+        let view = GrabbedView { index, captured_at, temperature_c, turntable_position, frames, dropped };
         if to_processing.send(view).is_err() {
             break; // a later stage failed; its error is reported
         }
@@ -465,7 +452,7 @@ fn statistics(frame: &ProcessedFrame) -> (f64, f64) {
 /// Writing stage: files into `views/NNN.partial/`, checksums, rename, manifest.
 fn write_views(
     from_processing: Receiver<ProcessedView>,
-    manifest: &mut Manifest,
+    manifest: &mut SessionManifest,
     options: &SessionOptions,
     last: &Mutex<LastView>,
     bar: &indicatif::ProgressBar,
@@ -492,11 +479,12 @@ fn write_views(
         sync_dir(&views_dir)?;
         let files = list_files(dir, &final_dir)?;
         let frames = view.grabbed.frames.iter().map(Vec::len).sum();
-        manifest.views.push(ViewRecord {
+        manifest.views.push(SessionView {
             index: view.grabbed.index,
             name: name.clone(),
             captured_at: view.grabbed.captured_at.clone(),
             temperature_c: view.grabbed.temperature_c,
+            turntable_position: view.grabbed.turntable_position,
             frames,
             dropped_frames: view.grabbed.dropped,
             saturated_fraction: view.saturated_fraction,
@@ -537,7 +525,7 @@ fn list_files(root: &Path, folder: &Path) -> Result<Vec<FileRecord>> {
         .iter()
         .map(|p| {
             let relative = p.strip_prefix(root).expect("under root").to_string_lossy().into_owned();
-            FileRecord::of(root, &relative)
+            Ok(FileRecord::of(root, &relative)?)
         })
         .collect()
 }

@@ -3,6 +3,7 @@
 
 use crate::camera::Camera;
 use crate::{Error, Result};
+use rmvp_dataset::session::PositioningMode;
 use std::io::BufRead;
 use std::time::{Duration, Instant};
 
@@ -31,13 +32,23 @@ pub struct LastView {
 }
 
 impl Positioning {
-    /// The name stored in the manifest.
-    pub fn name(&self) -> &'static str {
+    /// The positioning of `mode`; `interval` is the pause of timed mode.
+    pub fn new(mode: PositioningMode, interval: Duration) -> Self {
+        match mode {
+            PositioningMode::Interactive => Positioning::Interactive,
+            PositioningMode::Timed => Positioning::Timed(interval),
+            PositioningMode::Trigger => Positioning::HardwareTrigger,
+            PositioningMode::Turntable => Positioning::Turntable,
+        }
+    }
+
+    /// The mode stored in the manifest.
+    pub fn mode(&self) -> PositioningMode {
         match self {
-            Positioning::Interactive => "interactive",
-            Positioning::Timed(_) => "timed",
-            Positioning::HardwareTrigger => "trigger",
-            Positioning::Turntable => "turntable",
+            Positioning::Interactive => PositioningMode::Interactive,
+            Positioning::Timed(_) => PositioningMode::Timed,
+            Positioning::HardwareTrigger => PositioningMode::Trigger,
+            Positioning::Turntable => PositioningMode::Turntable,
         }
     }
 
@@ -107,9 +118,7 @@ fn prompt(message: &str) -> Result<()> {
     eprintln!("{message}");
     let mut line = String::new();
     match std::io::stdin().lock().read_line(&mut line) {
-        Ok(0) => Err(Error::Unsupported(
-            "standard input closed while waiting for the operator (use --mode timed or turntable)".into(),
-        )),
+        Ok(0) => Err(Error::OperatorGone),
         Ok(_) => Ok(()),
         Err(e) => Err(Error::Unsupported(format!("reading the operator's Enter: {e}"))),
     }

@@ -22,14 +22,11 @@ pub fn ensure_space(dir: &Path, needed: u64) -> Result<()> {
     let free = free_bytes(dir)?;
     let wanted = needed + needed / 10 + (64 << 20);
     if free < wanted {
-        return Err(Error::in_file(
-            dir,
-            format!(
-                "disk full: {:.0} MiB free, the next view needs about {:.0} MiB; free space and run again with --resume",
-                free as f64 / 1048576.0,
-                wanted as f64 / 1048576.0
-            ),
-        ));
+        return Err(Error::DiskFull {
+            dir: dir.to_path_buf(),
+            free_mib: free as f64 / 1048576.0,
+            needed_mib: wanted as f64 / 1048576.0,
+        });
     }
     Ok(())
 }
@@ -43,7 +40,8 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         assert!(free_bytes(dir.path()).unwrap() > 0);
         ensure_space(dir.path(), 1024).unwrap();
-        let err = ensure_space(dir.path(), u64::MAX / 4).unwrap_err().to_string();
-        assert!(err.contains("disk full") && err.contains(&dir.path().display().to_string()), "{err}");
+        let err = ensure_space(dir.path(), u64::MAX / 4).unwrap_err();
+        assert!(matches!(&err, Error::DiskFull { dir: d, .. } if d == dir.path()), "{err}");
+        assert!(err.to_string().contains(&dir.path().display().to_string()), "{err}");
     }
 }

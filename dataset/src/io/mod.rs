@@ -5,7 +5,31 @@
 
 pub mod atomic;
 pub mod exr;
+pub mod json;
 pub mod npy;
 pub mod png;
 
 pub use atomic::{write_atomically, write_bytes_atomically};
+
+use crate::{Error, Image, Result};
+use std::path::Path;
+
+/// A linear image from a file: PNG samples divided by their full scale (8 or 16 bits), EXR
+/// channels `R G B` or its only channel.
+pub fn read_linear(path: &Path) -> Result<Image<f32>> {
+    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
+        let (_, _, channels) = exr::read_exr_channels(path)?;
+        let names: Vec<&str> = channels.iter().map(|(n, _)| n.as_str()).collect();
+        return if ["R", "G", "B"].iter().all(|c| names.contains(c)) {
+            exr::read_exr(path, &["R", "G", "B"])
+        } else if names.len() == 1 {
+            exr::read_exr(path, &[names[0]])
+        } else {
+            Err(Error::format(path, format!("expected channels R, G, B or a single channel, found {names:?}")))
+        };
+    }
+    Ok(match png::read_png(path)? {
+        png::PngImage::U8(i) => i.map(|v| v as f32 / 255.0),
+        png::PngImage::U16(i) => i.map(|v| v as f32 / 65535.0),
+    })
+}

@@ -72,33 +72,8 @@ fn read_matrix4(path: &Path, name: &str, array: &npy::Array<f64>) -> Result<Matr
 /// Read a NeRSP-layout scene.
 pub fn read(dir: &Path) -> Result<Scene> {
     let cameras_path = dir.join(CAMERAS);
-    let arrays = npy::read_npz::<f64>(&cameras_path)?;
-    let lookup = |name: &str| arrays.iter().find(|(n, _)| n == name).map(|(_, a)| a);
-    let count = (0..).take_while(|i| lookup(&format!("world_mat_{i}")).is_some()).count();
-    if count == 0 {
-        return Err(Error::format(&cameras_path, "no world_mat_0"));
-    }
-    let mut world_mats = Vec::with_capacity(count);
-    let mut normalization = None;
-    for i in 0..count {
-        let name = format!("world_mat_{i}");
-        world_mats.push(read_matrix4(&cameras_path, &name, lookup(&name).expect("counted"))?);
-        let scale_name = format!("scale_mat_{i}");
-        let scale = match lookup(&scale_name) {
-            Some(a) => read_matrix4(&cameras_path, &scale_name, a)?,
-            None => Matrix4::identity(),
-        };
-        match normalization {
-            None => normalization = Some(scale),
-            Some(first) if first != scale => {
-                return Err(Error::format(
-                    &cameras_path,
-                    format!("{scale_name} differs from scale_mat_0; per-view normalisations are not supported"),
-                ));
-            }
-            _ => {}
-        }
-    }
+    let (world_mats, normalization) = read_cameras(&cameras_path)?;
+    let count = world_mats.len();
 
     let gt_path = dir.join(GT_CAMERAS);
     let (gt_cameras, mut metadata) =
@@ -125,7 +100,40 @@ pub fn read(dir: &Path) -> Result<Scene> {
     let mesh = mesh_path.is_file().then(|| Mesh::read(&mesh_path)).transpose()?;
     let env_path = dir.join("gt/env.exr");
     let env_map = env_path.is_file().then(|| exr::read_exr(&env_path, &RGB)).transpose()?;
-    Ok(Scene { views, normalization: normalization.expect("count > 0"), mesh, env_map, metadata })
+    Ok(Scene { views, normalization, mesh, env_map, metadata })
+}
+
+/// The `world_mat_i` (`K [R | t]`, 4x4) of an IDR/NeRSP `cameras.npz`, in order, and the one
+/// `scale_mat` they share (identity when absent).
+pub fn read_cameras(path: &Path) -> Result<(Vec<Matrix4<f64>>, Matrix4<f64>)> {
+    let arrays = npy::read_npz::<f64>(path)?;
+    let lookup = |name: &str| arrays.iter().find(|(n, _)| n == name).map(|(_, a)| a);
+    let count = (0..).take_while(|i| lookup(&format!("world_mat_{i}")).is_some()).count();
+    if count == 0 {
+        return Err(Error::format(path, "no world_mat_0"));
+    }
+    let mut world_mats = Vec::with_capacity(count);
+    let mut normalization = None;
+    for i in 0..count {
+        let name = format!("world_mat_{i}");
+        world_mats.push(read_matrix4(path, &name, lookup(&name).expect("counted"))?);
+        let scale_name = format!("scale_mat_{i}");
+        let scale = match lookup(&scale_name) {
+            Some(a) => read_matrix4(path, &scale_name, a)?,
+            None => Matrix4::identity(),
+        };
+        match normalization {
+            None => normalization = Some(scale),
+            Some(first) if first != scale => {
+                return Err(Error::format(
+                    path,
+                    format!("{scale_name} differs from scale_mat_0; per-view normalisations are not supported"),
+                ));
+            }
+            _ => {}
+        }
+    }
+    Ok((world_mats, normalization.expect("count > 0")))
 }
 
 fn read_gt_cameras(path: &Path) -> Result<(Vec<GtCamera>, serde_json::Map<String, serde_json::Value>)> {

@@ -1,6 +1,6 @@
 //! Adam with per-group learning rates, linear warm-up and cosine decay (NeuS's schedule).
 
-use super::params::{Group, Layout};
+use super::params::{Group, ParamLayout};
 use serde::{Deserialize, Serialize};
 
 /// Learning rates and schedule.
@@ -51,7 +51,7 @@ impl Adam {
     /// One update of `params` by `grad` at `iteration` of `total`.
     pub fn step(
         &mut self,
-        layout: &Layout,
+        layout: &ParamLayout,
         config: &AdamConfig,
         params: &mut [f32],
         grad: &[f32],

@@ -1,8 +1,8 @@
 //! Multilayer perceptrons on row-major batches (`n x width`), forward and backward by SGEMM
 //! (`matrixmultiply`), with an optional skip connection and NeuS's geometric initialisation.
 
-use super::params::{Group, Layout};
-use rmvp_render::rng::Rng;
+use super::params::{Group, ParamLayout};
+use rmvp_dataset::rng::Rng;
 
 /// Activation of the hidden layers.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -105,7 +105,7 @@ pub enum Init {
 impl Mlp {
     /// Reserve a network in `layout`: `hidden` units in each of `depth` hidden layers.
     pub fn new(
-        layout: &mut Layout,
+        layout: &mut ParamLayout,
         inputs: usize,
         hidden: usize,
         depth: usize,

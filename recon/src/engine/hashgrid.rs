@@ -1,8 +1,8 @@
 //! Multiresolution hash encoding (Müller et al. 2022) of points in `[-1, 1]^3`, trilinear, with
 //! per-level weights for coarse-to-fine annealing (Neuralangelo).
 
-use super::params::{Group, Layout};
-use rmvp_render::rng::Rng;
+use super::params::{Group, ParamLayout};
+use rmvp_dataset::rng::Rng;
 
 /// Features per level.
 pub const FEATURES: usize = 2;
@@ -23,7 +23,7 @@ struct Corners {
 
 impl HashGrid {
     /// `levels` levels from `base` to `finest` cells per axis, `2^log2_table` entries per level.
-    pub fn new(layout: &mut Layout, levels: usize, log2_table: u32, base: u32, finest: u32) -> Self {
+    pub fn new(layout: &mut ParamLayout, levels: usize, log2_table: u32, base: u32, finest: u32) -> Self {
         let growth = if levels > 1 { (finest as f64 / base as f64).powf(1.0 / (levels - 1) as f64) } else { 1.0 };
         let resolutions = (0..levels).map(|l| (base as f64 * growth.powi(l as i32)).round() as u32).collect();
         let table = 1usize << log2_table;

@@ -12,4 +12,4 @@ pub mod params;
 pub use adam::{Adam, AdamConfig};
 pub use dense::{Activation, Init, Mlp, MlpCache};
 pub use hashgrid::HashGrid;
-pub use params::{Group, Layout};
+pub use params::{Group, ParamLayout};

@@ -16,12 +16,12 @@ pub enum Group {
 
 /// The layout of the flat parameter vector, filled module by module.
 #[derive(Clone, Debug, Default)]
-pub struct Layout {
+pub struct ParamLayout {
     ranges: Vec<(Range<usize>, Group)>,
     len: usize,
 }
 
-impl Layout {
+impl ParamLayout {
     /// Reserve `len` parameters in `group`; returns their offset.
     pub fn reserve(&mut self, len: usize, group: Group) -> usize {
         let offset = self.len;

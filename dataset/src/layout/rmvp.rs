@@ -1,4 +1,4 @@
-//! Our canonical layout: a versioned JSON manifest and one folder per view.
+//! Our layout (`rmvp`): a versioned JSON manifest and one folder per view.
 //!
 //! ```text
 //! scene.json                       manifest (format "rmvp-scene", version 1)
@@ -30,7 +30,7 @@ pub const VERSION: u32 = 1;
 
 /// The manifest, `scene.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct Manifest {
+pub struct SceneManifest {
     /// Always [`FORMAT`].
     pub format: String,
     /// Layout version, at most [`VERSION`].
@@ -38,7 +38,7 @@ pub struct Manifest {
     /// Unit sphere to world (IDR `scale_mat`), row-major.
     pub normalization: [[f64; 4]; 4],
     /// Every view.
-    pub views: Vec<ViewRecord>,
+    pub views: Vec<SceneViewRecord>,
     /// Ground-truth mesh file, relative to the scene folder.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mesh: Option<String>,
@@ -52,7 +52,7 @@ pub struct Manifest {
 
 /// One view in the manifest; file names are relative to the scene folder.
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct ViewRecord {
+pub struct SceneViewRecord {
     /// View name.
     pub name: String,
     /// Train or eval.
@@ -112,11 +112,11 @@ fn from_rows4(r: &[[f64; 4]; 4]) -> Matrix4<f64> {
     Matrix4::from_fn(|i, j| r[i][j])
 }
 
-/// Read a canonical-layout scene.
+/// Read a scene in our layout.
 pub fn read(dir: &Path) -> Result<Scene> {
     let path = dir.join(MANIFEST);
     let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
-    let manifest: Manifest =
+    let manifest: SceneManifest =
         serde_json::from_str(&text).map_err(|e| Error::format(&path, format!("bad manifest: {e}")))?;
     if manifest.format != FORMAT {
         return Err(Error::format(&path, format!("format is {:?}, expected {FORMAT:?}", manifest.format)));
@@ -137,7 +137,7 @@ pub fn read(dir: &Path) -> Result<Scene> {
     Ok(Scene { views, normalization: from_rows4(&manifest.normalization), mesh, env_map, metadata: manifest.metadata })
 }
 
-fn read_view(dir: &Path, record: &ViewRecord) -> Result<View> {
+fn read_view(dir: &Path, record: &SceneViewRecord) -> Result<View> {
     let camera = Camera::try_from(&record.camera).map_err(|e| Error::invalid(format!("view {}: {e}", record.name)))?;
     let mut view = View::new(record.name.clone(), record.split, camera);
     view.projection = record.projection.as_ref().map(from_rows4);
@@ -202,7 +202,7 @@ fn interleave(planes: &[Image<f32>]) -> Image<f32> {
     Image::from_vec(w, h, planes.len(), data).expect("planes of one size")
 }
 
-/// Write a canonical-layout scene; `scene.json` is written last.
+/// Write a scene in our layout; `scene.json` is written last.
 pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
     let views = scene.views.par_iter().map(|view| write_view(dir, view)).collect::<Result<Vec<_>>>()?;
     let mesh =
@@ -212,7 +212,7 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
         .as_ref()
         .map(|e| exr::write_exr(&dir.join("env.exr"), e, &["R", "G", "B"]).map(|_| "env.exr".to_string()))
         .transpose()?;
-    let manifest = Manifest {
+    let manifest = SceneManifest {
         format: FORMAT.into(),
         version: VERSION,
         normalization: rows4(&scene.normalization),
@@ -225,7 +225,7 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
     write_bytes_atomically(&dir.join(MANIFEST), text.as_bytes())
 }
 
-fn write_view(dir: &Path, view: &View) -> Result<ViewRecord> {
+fn write_view(dir: &Path, view: &View) -> Result<SceneViewRecord> {
     let folder = format!("views/{}", view.name);
     let mut files = ViewFiles::default();
     let put = |name: &str, write: &dyn Fn(&Path) -> Result<()>| -> Result<Option<String>> {
@@ -261,7 +261,7 @@ fn write_view(dir: &Path, view: &View) -> Result<ViewRecord> {
     if let Some(p) = &view.preview {
         files.preview = put("preview.png", &|path| png::write_png_u8(path, p))?;
     }
-    Ok(ViewRecord {
+    Ok(SceneViewRecord {
         name: view.name.clone(),
         split: view.split,
         camera: CameraRecord::from(&view.camera),

@@ -1,0 +1,380 @@
+//! Calibration boards (OpenCV 4.6, the contrib `aruco` module): their description, their
+//! picture for printing or rendering, and the detection of their corners in an image.
+//!
+//! The board frame is rmvp's world frame whenever a board gives the poses: origin at the corner
+//! of the printed board that is lower-left when its picture is upright, x along the first
+//! (longer) side, y along the other, z up out of the printed face, millimetres. OpenCV 4.6
+//! puts its board origin at the upper-left with y down the picture and z into the board; the
+//! conversion is made here, once. Detected corners are in rmvp's pixel convention (pixel
+//! `(i, j)` centred at `(i + 0.5, j + 0.5)`), OpenCV's plus half a pixel.
+
+use crate::{Error, Result};
+use nalgebra::{Matrix3, Point2, Point3, Vector2};
+use opencv::core::{self, Mat, Point2f, Ptr, Vector};
+use opencv::prelude::*;
+use opencv::{aruco, calib3d, imgproc};
+use rmvp_dataset::mesh::{ScalarKind, VertexProperty};
+use rmvp_dataset::{Image, Mesh};
+use serde::{Deserialize, Serialize};
+
+/// The two kinds of board.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum BoardKind {
+    /// A chessboard with ArUco markers in its white squares: corners are identified, so any
+    /// part of the board will do (intrinsics and poses).
+    #[default]
+    Charuco,
+    /// A plain chessboard: the whole pattern must be seen (intrinsics only).
+    Chessboard,
+}
+
+/// The ArUco dictionaries of OpenCV 4.6, by their OpenCV names without `DICT_` (`5X5_1000`).
+pub const DICTIONARIES: [(&str, aruco::PREDEFINED_DICTIONARY_NAME); 17] = {
+    use aruco::PREDEFINED_DICTIONARY_NAME::*;
+    [
+        ("4X4_50", DICT_4X4_50),
+        ("4X4_100", DICT_4X4_100),
+        ("4X4_250", DICT_4X4_250),
+        ("4X4_1000", DICT_4X4_1000),
+        ("5X5_50", DICT_5X5_50),
+        ("5X5_100", DICT_5X5_100),
+        ("5X5_250", DICT_5X5_250),
+        ("5X5_1000", DICT_5X5_1000),
+        ("6X6_50", DICT_6X6_50),
+        ("6X6_100", DICT_6X6_100),
+        ("6X6_250", DICT_6X6_250),
+        ("6X6_1000", DICT_6X6_1000),
+        ("7X7_50", DICT_7X7_50),
+        ("7X7_100", DICT_7X7_100),
+        ("7X7_250", DICT_7X7_250),
+        ("7X7_1000", DICT_7X7_1000),
+        ("ARUCO_ORIGINAL", DICT_ARUCO_ORIGINAL),
+    ]
+};
+
+/// A calibration board as printed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BoardSpec {
+    /// ChArUco or chessboard.
+    pub kind: BoardKind,
+    /// Squares along x and y.
+    pub squares: [u32; 2],
+    /// Side of a square, millimetres.
+    pub square_mm: f64,
+    /// Side of a marker (ChArUco), millimetres.
+    pub marker_mm: f64,
+    /// ArUco dictionary (ChArUco), e.g. `5X5_1000`.
+    pub dictionary: String,
+}
+
+impl Default for BoardSpec {
+    /// The lab's board: ChArUco 8x6 squares of 30 mm, 22 mm markers from `5X5_1000`.
+    fn default() -> Self {
+        Self {
+            kind: BoardKind::Charuco,
+            squares: [8, 6],
+            square_mm: 30.0,
+            marker_mm: 22.0,
+            dictionary: "5X5_1000".into(),
+        }
+    }
+}
+
+impl BoardSpec {
+    /// The board's extent in millimetres (x, y).
+    pub fn size_mm(&self) -> [f64; 2] {
+        [self.squares[0] as f64 * self.square_mm, self.squares[1] as f64 * self.square_mm]
+    }
+
+    /// The inner corners along x and y.
+    pub fn inner_corners(&self) -> [u32; 2] {
+        [self.squares[0] - 1, self.squares[1] - 1]
+    }
+
+    /// Check the numbers.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |why: String| Err(Error::Board(why));
+        if self.squares[0] < 3 || self.squares[1] < 3 {
+            return bad(format!("{}x{} squares: at least 3x3", self.squares[0], self.squares[1]));
+        }
+        if self.square_mm.is_nan() || self.square_mm <= 0.0 {
+            return bad(format!("square size {} mm", self.square_mm));
+        }
+        if self.kind == BoardKind::Charuco {
+            if self.marker_mm.is_nan() || self.marker_mm <= 0.0 || self.marker_mm >= self.square_mm {
+                return bad(format!(
+                    "marker size {} mm must be below the square size {} mm",
+                    self.marker_mm, self.square_mm
+                ));
+            }
+            dictionary(&self.dictionary)?;
+        }
+        Ok(())
+    }
+}
+
+fn dictionary(name: &str) -> Result<aruco::PREDEFINED_DICTIONARY_NAME> {
+    let name = name.trim_start_matches("DICT_");
+    DICTIONARIES.iter().find(|(n, _)| n.eq_ignore_ascii_case(name)).map(|(_, d)| *d).ok_or_else(|| {
+        Error::Board(format!("unknown ArUco dictionary {name:?} (one of {})", DICTIONARIES.map(|(n, _)| n).join(", ")))
+    })
+}
+
+/// The corners found in one image, with their board coordinates.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Detection {
+    /// Corner identities (ChArUco corner ids; chessboard: row-major index).
+    pub ids: Vec<u32>,
+    /// Where they are in the image (rmvp pixel convention).
+    pub pixels: Vec<Point2<f64>>,
+    /// Where they are on the board (board frame, millimetres, z = 0).
+    pub points: Vec<Point3<f64>>,
+    /// ArUco markers found (ChArUco).
+    pub markers: usize,
+}
+
+impl Detection {
+    /// Corners found.
+    pub fn len(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// True when nothing was found.
+    pub fn is_empty(&self) -> bool {
+        self.ids.is_empty()
+    }
+}
+
+/// A board ready to draw and detect.
+pub struct Board {
+    spec: BoardSpec,
+    charuco: Option<(Ptr<aruco::CharucoBoard>, Ptr<aruco::Dictionary>)>,
+}
+
+/// OpenCV's ChArUco board of `spec` and its dictionary.
+fn charuco_board(spec: &BoardSpec) -> Result<(Ptr<aruco::CharucoBoard>, Ptr<aruco::Dictionary>)> {
+    let dict = aruco::get_predefined_dictionary(dictionary(&spec.dictionary)?)?;
+    let board = aruco::CharucoBoard::create(
+        spec.squares[0] as i32,
+        spec.squares[1] as i32,
+        spec.square_mm as f32,
+        spec.marker_mm as f32,
+        &dict,
+    )?;
+    Ok((board, dict))
+}
+
+/// When `cornerSubPix` stops.
+fn subpixel_criteria() -> Result<core::TermCriteria> {
+    Ok(core::TermCriteria::new(core::TermCriteria_COUNT + core::TermCriteria_EPS, 50, 1e-4)?)
+}
+
+/// OpenCV's board coordinates to ours: x kept, y flipped about the board's height, z flipped.
+fn from_opencv(spec: &BoardSpec, p: core::Point3f) -> Point3<f64> {
+    Point3::new(p.x as f64, spec.size_mm()[1] - p.y as f64, -(p.z as f64))
+}
+
+/// Pixels as OpenCV 4.6 wants them: an 8-bit grey `Mat` over our image (copied).
+fn grey_mat(image: &Image<u8>) -> Result<Mat> {
+    let grey: Vec<u8> = if image.channels() == 1 {
+        image.data().to_vec()
+    } else {
+        let c = image.channels();
+        image
+            .data()
+            .chunks_exact(c)
+            .map(|p| ((p[0] as u16 + p[1.min(c - 1)] as u16 + p[2.min(c - 1)] as u16) / 3) as u8)
+            .collect()
+    };
+    let mat = Mat::from_slice(&grey)?;
+    Ok(mat.reshape(1, image.height() as i32)?.try_clone()?)
+}
+
+impl Board {
+    /// The board of `spec`.
+    pub fn new(spec: &BoardSpec) -> Result<Self> {
+        spec.validate()?;
+        let charuco = match spec.kind {
+            BoardKind::Charuco => Some(charuco_board(spec)?),
+            BoardKind::Chessboard => None,
+        };
+        Ok(Self { spec: spec.clone(), charuco })
+    }
+
+    /// The board's description.
+    pub fn spec(&self) -> &BoardSpec {
+        &self.spec
+    }
+
+    /// The board's picture at `px_per_mm` (8-bit grey, no margin), upright: its top row is the
+    /// board's `y = height` edge, its left column `x = 0`.
+    pub fn draw(&self, px_per_mm: f64) -> Result<Image<u8>> {
+        let [w, h] = self.spec.size_mm().map(|v| (v * px_per_mm).round() as usize);
+        let data = match &self.charuco {
+            Some(_) => {
+                // OpenCV's draw mutates its board: draw with a fresh one.
+                let (mut board, _) = charuco_board(&self.spec)?;
+                let mut mat = Mat::default();
+                board.draw(core::Size::new(w as i32, h as i32), &mut mat, 0, 1)?;
+                mat.data_bytes()?.to_vec()
+            }
+            None => {
+                let square = self.spec.square_mm * px_per_mm;
+                let mut data = vec![255u8; w * h];
+                for (k, v) in data.iter_mut().enumerate() {
+                    let (i, j) = ((k % w) as f64 / square, (k / w) as f64 / square);
+                    if (i as u32 + j as u32).is_multiple_of(2) {
+                        *v = 0;
+                    }
+                }
+                data
+            }
+        };
+        Ok(Image::from_vec(w, h, 1, data)?)
+    }
+
+    /// The printed board as a mesh: one quad in the board frame's `z = 0` plane with texture
+    /// coordinates for [`Board::albedo_texture`] (for rendering a simulated lab).
+    pub fn plane_mesh(&self) -> Mesh {
+        let [w, h] = self.spec.size_mm().map(|v| v as f32);
+        let corners = [[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]];
+        let property = |name: &str, axis: usize| VertexProperty {
+            name: name.into(),
+            kind: ScalarKind::F32,
+            values: corners.iter().map(|c| (c[axis] / [w, h][axis]) as f64).collect(),
+        };
+        Mesh {
+            positions: corners.iter().map(|c| [c[0], c[1], 0.0]).collect(),
+            normals: Some(vec![[0.0, 0.0, 1.0]; 4]),
+            faces: vec![[0, 1, 2], [0, 2, 3]],
+            vertex_properties: vec![property("u", 0), property("v", 1)],
+        }
+    }
+
+    /// The printed board's albedo for rendering: paper white 0.8, ink black 0.04 (linear RGB).
+    pub fn albedo_texture(&self, px_per_mm: f64) -> Result<Image<f32>> {
+        Ok(self.draw(px_per_mm)?.map(|v| 0.04 + 0.76 * v as f32 / 255.0).channel_to_rgb())
+    }
+
+    /// Find the board's corners in `image` (8-bit, grey or RGB). Nothing found is an empty
+    /// detection, not an error.
+    pub fn detect(&self, image: &Image<u8>) -> Result<Detection> {
+        let mat = grey_mat(image)?;
+        let mut found = match &self.charuco {
+            Some((board, dict)) => self.detect_charuco(&mat, board, dict)?,
+            None => self.detect_chessboard(&mat)?,
+        };
+        // OpenCV's pixel centres are at integers, ours at +0.5.
+        found.pixels.iter_mut().for_each(|p| *p += Vector2::new(0.5, 0.5));
+        Ok(found)
+    }
+
+    fn detect_charuco(
+        &self,
+        mat: &Mat,
+        board: &Ptr<aruco::CharucoBoard>,
+        dict: &Ptr<aruco::Dictionary>,
+    ) -> Result<Detection> {
+        let params = aruco::DetectorParameters::create()?;
+        let mut marker_corners = Vector::<Vector<Point2f>>::new();
+        let mut marker_ids = Vector::<i32>::new();
+        let mut rejected = Vector::<Vector<Point2f>>::new();
+        aruco::detect_markers(mat, dict, &mut marker_corners, &mut marker_ids, &params, &mut rejected)?;
+        if marker_ids.is_empty() {
+            return Ok(Detection::default());
+        }
+        let mut corners = Vector::<Point2f>::new();
+        let mut ids = Vector::<i32>::new();
+        aruco::interpolate_corners_charuco(
+            &marker_corners,
+            &marker_ids,
+            mat,
+            board,
+            &mut corners,
+            &mut ids,
+            &core::no_array(),
+            &core::no_array(),
+            2,
+        )?;
+        // OpenCV 4.6 leaves the interpolated ChArUco corners half a pixel off its own convention
+        // (measured on rendered boards); refining them as chessboard corners removes that.
+        // The refinement window scales with the squares as seen (an eighth of a square's side,
+        // from the markers' sides): smaller windows left corners of tilted views biased by up to
+        // 0.2 px, larger ones reach neighbouring corners.
+        if !corners.is_empty() {
+            let marker_px: f64 = marker_corners
+                .iter()
+                .map(|m| {
+                    let p: Vec<Point2f> = m.iter().collect();
+                    (0..4).map(|k| ((p[k].x - p[(k + 1) % 4].x).hypot(p[k].y - p[(k + 1) % 4].y)) as f64).sum::<f64>()
+                        / 4.0
+                })
+                .sum::<f64>()
+                / marker_corners.len() as f64;
+            let half = (0.12 * marker_px * self.spec.square_mm / self.spec.marker_mm).round().clamp(2.0, 12.0) as i32;
+            imgproc::corner_sub_pix(
+                mat,
+                &mut corners,
+                core::Size::new(half, half),
+                core::Size::new(-1, -1),
+                subpixel_criteria()?,
+            )?;
+        }
+        let object = board.chessboard_corners();
+        let mut detection = Detection { markers: marker_ids.len(), ..Detection::default() };
+        for (id, p) in ids.iter().zip(corners.iter()) {
+            detection.ids.push(id as u32);
+            detection.pixels.push(Point2::new(p.x as f64, p.y as f64));
+            detection.points.push(from_opencv(&self.spec, object.get(id as usize)?));
+        }
+        Ok(detection)
+    }
+
+    fn detect_chessboard(&self, mat: &Mat) -> Result<Detection> {
+        let [nx, ny] = self.spec.inner_corners();
+        let mut corners = Vector::<Point2f>::new();
+        let flags = calib3d::CALIB_CB_ADAPTIVE_THRESH | calib3d::CALIB_CB_NORMALIZE_IMAGE;
+        if !calib3d::find_chessboard_corners(mat, core::Size::new(nx as i32, ny as i32), &mut corners, flags)? {
+            return Ok(Detection::default());
+        }
+        imgproc::corner_sub_pix(
+            mat,
+            &mut corners,
+            core::Size::new(5, 5),
+            core::Size::new(-1, -1),
+            subpixel_criteria()?,
+        )?;
+        let mut detection = Detection::default();
+        for (k, p) in corners.iter().enumerate() {
+            let (i, j) = ((k as u32 % nx) as f64, (k as u32 / nx) as f64);
+            let opencv = core::Point3f::new(
+                ((i + 1.0) * self.spec.square_mm) as f32,
+                ((j + 1.0) * self.spec.square_mm) as f32,
+                0.0,
+            );
+            detection.ids.push(k as u32);
+            detection.pixels.push(Point2::new(p.x as f64, p.y as f64));
+            detection.points.push(from_opencv(&self.spec, opencv));
+        }
+        Ok(detection)
+    }
+
+    /// Whether the corners `ids` of a ChArUco board all lie on one line (no pose from them).
+    pub fn collinear(&self, ids: &[u32]) -> Result<bool> {
+        match &self.charuco {
+            Some((board, _)) => {
+                let ids: Vector<i32> = ids.iter().map(|&i| i as i32).collect();
+                Ok(aruco::test_charuco_corners_collinear(board, &ids)?)
+            }
+            None => Ok(false),
+        }
+    }
+}
+
+/// The rotation from the board frame (z up) to a frame with +Y up and the board's y towards
+/// -Z, the frame environment maps are stored in.
+pub fn board_to_y_up() -> Matrix3<f64> {
+    Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0)
+}

@@ -1,0 +1,220 @@
+//! nerfstudio's `transforms.json`: camera-to-world matrices in the OpenGL convention (x right,
+//! y up, z backwards) and intrinsics (global or per frame) with pixel centres at +0.5, as
+//! rmvp's. Reading and writing turn the camera axes: `c2w_opencv = c2w_opengl diag(1, -1, -1)`.
+
+use crate::camera::{Camera, Distortion};
+use crate::io::json::{read_json, write_json};
+use crate::{Error, Result};
+use nalgebra::{Matrix3, Matrix4, Vector3};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Intrinsics as nerfstudio names them (all optional: per frame they override the file's).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Intrinsics {
+    /// Focal length x, pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fl_x: Option<f64>,
+    /// Focal length y, pixels.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fl_y: Option<f64>,
+    /// Principal point x.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cx: Option<f64>,
+    /// Principal point y.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cy: Option<f64>,
+    /// Image width.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub w: Option<u32>,
+    /// Image height.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub h: Option<u32>,
+    /// OpenCV radial and tangential coefficients.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k1: Option<f64>,
+    /// See `k1`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k2: Option<f64>,
+    /// See `k1`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub k3: Option<f64>,
+    /// See `k1`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub p1: Option<f64>,
+    /// See `k1`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub p2: Option<f64>,
+}
+
+/// One frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Frame {
+    /// Image, relative to the file.
+    pub file_path: String,
+    /// Camera to world, OpenGL axes, row-major.
+    pub transform_matrix: [[f64; 4]; 4],
+    /// Object mask, relative to the file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mask_path: Option<String>,
+    /// Intrinsics of this frame, overriding the file's.
+    #[serde(flatten)]
+    pub intrinsics: Intrinsics,
+}
+
+/// A `transforms.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Transforms {
+    /// `OPENCV` (nerfstudio's name of the pinhole model with OpenCV distortion).
+    #[serde(default = "opencv")]
+    pub camera_model: String,
+    /// Intrinsics shared by the frames.
+    #[serde(flatten)]
+    pub intrinsics: Intrinsics,
+    /// The frames.
+    pub frames: Vec<Frame>,
+}
+
+fn opencv() -> String {
+    "OPENCV".into()
+}
+
+/// OpenGL camera axes to OpenCV's (and back: the same matrix).
+fn flip() -> Matrix3<f64> {
+    Matrix3::from_diagonal(&Vector3::new(1.0, -1.0, -1.0))
+}
+
+impl Intrinsics {
+    fn of(camera: &Camera) -> Self {
+        let d = camera.distortion;
+        Self {
+            fl_x: Some(camera.k[(0, 0)]),
+            fl_y: Some(camera.k[(1, 1)]),
+            cx: Some(camera.k[(0, 2)]),
+            cy: Some(camera.k[(1, 2)]),
+            w: Some(camera.width),
+            h: Some(camera.height),
+            k1: d.map(|d| d.k1),
+            k2: d.map(|d| d.k2),
+            k3: d.map(|d| d.k3),
+            p1: d.map(|d| d.p1),
+            p2: d.map(|d| d.p2),
+        }
+    }
+
+    /// `self`, each missing value taken from `shared`.
+    fn or(&self, shared: &Intrinsics) -> Intrinsics {
+        Intrinsics {
+            fl_x: self.fl_x.or(shared.fl_x),
+            fl_y: self.fl_y.or(shared.fl_y),
+            cx: self.cx.or(shared.cx),
+            cy: self.cy.or(shared.cy),
+            w: self.w.or(shared.w),
+            h: self.h.or(shared.h),
+            k1: self.k1.or(shared.k1),
+            k2: self.k2.or(shared.k2),
+            k3: self.k3.or(shared.k3),
+            p1: self.p1.or(shared.p1),
+            p2: self.p2.or(shared.p2),
+        }
+    }
+}
+
+impl Transforms {
+    /// The transforms of `cameras` (image path, mask path, camera), intrinsics shared when they
+    /// are the same for all.
+    pub fn from_cameras(cameras: &[(String, Option<String>, Camera)]) -> Self {
+        let all: Vec<Intrinsics> = cameras.iter().map(|(_, _, c)| Intrinsics::of(c)).collect();
+        let shared = all.windows(2).all(|w| w[0] == w[1]);
+        let frames = cameras
+            .iter()
+            .zip(&all)
+            .map(|((file, mask, camera), intrinsics)| {
+                let mut c2w = Matrix4::identity();
+                c2w.fixed_view_mut::<3, 3>(0, 0).copy_from(&(camera.r.transpose() * flip()));
+                c2w.fixed_view_mut::<3, 1>(0, 3).copy_from(&camera.center().coords);
+                Frame {
+                    file_path: file.clone(),
+                    transform_matrix: [0, 1, 2, 3].map(|i| [0, 1, 2, 3].map(|j| c2w[(i, j)])),
+                    mask_path: mask.clone(),
+                    intrinsics: if shared { Intrinsics::default() } else { intrinsics.clone() },
+                }
+            })
+            .collect();
+        let intrinsics = if shared { all.first().cloned().unwrap_or_default() } else { Intrinsics::default() };
+        Self { camera_model: opencv(), intrinsics, frames }
+    }
+
+    /// Every frame's camera, named by its image's file stem.
+    pub fn cameras(&self, path: &Path) -> Result<Vec<(String, Camera)>> {
+        self.frames
+            .iter()
+            .map(|frame| {
+                let i = frame.intrinsics.or(&self.intrinsics);
+                let missing = |what: &str| Error::format(path, format!("frame {}: no {what}", frame.file_path));
+                let (fx, cx, cy) = (
+                    i.fl_x.ok_or_else(|| missing("fl_x"))?,
+                    i.cx.ok_or_else(|| missing("cx"))?,
+                    i.cy.ok_or_else(|| missing("cy"))?,
+                );
+                let k = Matrix3::new(fx, 0.0, cx, 0.0, i.fl_y.unwrap_or(fx), cy, 0.0, 0.0, 1.0);
+                let c2w = Matrix4::from_fn(|r, c| frame.transform_matrix[r][c]);
+                let rotation = c2w.fixed_view::<3, 3>(0, 0) * flip();
+                let r = rotation.transpose();
+                let t = -(r * c2w.fixed_view::<3, 1>(0, 3));
+                let mut camera =
+                    Camera::new(k, r, t, i.w.ok_or_else(|| missing("w"))?, i.h.ok_or_else(|| missing("h"))?);
+                if [i.k1, i.k2, i.k3, i.p1, i.p2].iter().any(Option::is_some) {
+                    let v = |x: Option<f64>| x.unwrap_or(0.0);
+                    camera.distortion =
+                        Some(Distortion { k1: v(i.k1), k2: v(i.k2), p1: v(i.p1), p2: v(i.p2), k3: v(i.k3) });
+                }
+                camera.validate().map_err(|e| Error::format(path, format!("frame {}: {e}", frame.file_path)))?;
+                let name = Path::new(&frame.file_path)
+                    .file_stem()
+                    .map_or_else(|| frame.file_path.clone(), |s| s.to_string_lossy().into_owned());
+                Ok((name, camera))
+            })
+            .collect()
+    }
+
+    /// Read `transforms.json`.
+    pub fn read(path: &Path) -> Result<Self> {
+        read_json(path, "a nerfstudio transforms.json")
+    }
+
+    /// Write `transforms.json` atomically.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        write_json(path, self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Rotation3;
+
+    #[test]
+    fn transforms_round_trip_cameras_through_opengl_axes() {
+        let r = *Rotation3::from_euler_angles(0.2, 0.7, -0.4).matrix();
+        let camera = Camera::new(
+            Matrix3::new(900.0, 0.0, 320.0, 0.0, 905.0, 250.0, 0.0, 0.0, 1.0),
+            r,
+            Vector3::new(1.0, 2.0, 3.0),
+            640,
+            512,
+        );
+        let t = Transforms::from_cameras(&[("images/007.png".into(), None, camera.clone())]);
+        // OpenGL: the camera looks down its -z; OpenCV's +z is the viewing direction.
+        let c2w = Matrix4::from_fn(|i, j| t.frames[0].transform_matrix[i][j]);
+        let forward = -c2w.fixed_view::<3, 1>(0, 2).into_owned();
+        assert!((forward - camera.r.transpose() * Vector3::z()).norm() < 1e-12);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("transforms.json");
+        t.write(&path).unwrap();
+        let back = Transforms::read(&path).unwrap().cameras(&path).unwrap();
+        assert_eq!(back[0].0, "007");
+        assert!((back[0].1.r - camera.r).abs().max() < 1e-12 && (back[0].1.t - camera.t).abs().max() < 1e-12);
+        assert_eq!(back[0].1.k, camera.k);
+    }
+}

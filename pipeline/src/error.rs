@@ -1,0 +1,62 @@
+//! Errors of whole jobs: each stage's own, and the job's.
+
+/// Result alias of this crate.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// What stopped a job.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A file or data-model error (names the file).
+    #[error(transparent)]
+    Dataset(#[from] rmvp_dataset::Error),
+    /// Rendering.
+    #[error(transparent)]
+    Render(#[from] rmvp_render::Error),
+    /// Frame processing or the sensor model.
+    #[error(transparent)]
+    Capture(#[from] rmvp_capture::Error),
+    /// Alignment or evaluation.
+    #[error(transparent)]
+    Align(#[from] rmvp_align::Error),
+    /// Reconstruction.
+    #[error(transparent)]
+    Recon(#[from] rmvp_recon::Error),
+    /// An image size the sensor's 2x2 polarizer cells cannot tile.
+    #[error("image size {width}x{height}: width and height must be even and at least 4")]
+    ImageSize {
+        /// Width.
+        width: u32,
+        /// Height.
+        height: u32,
+    },
+    /// An albedo texture the renderer cannot use.
+    #[error("texture {}: {source}", path.display())]
+    Texture {
+        /// The texture file.
+        path: std::path::PathBuf,
+        /// Why.
+        source: rmvp_render::Error,
+    },
+    /// An environment map the renderer cannot use.
+    #[error("environment map {}: {source}", path.as_ref().map_or("(built-in)".into(), |p| p.display().to_string()))]
+    Environment {
+        /// The file (`None`: the built-in one).
+        path: Option<std::path::PathBuf>,
+        /// Why.
+        source: rmvp_render::Error,
+    },
+    /// Calibration, poses or masks.
+    #[error(transparent)]
+    Calib(#[from] rmvp_calib::Error),
+    /// A session not yet posed or masked.
+    #[error("{}: no {missing}; pose and mask the session first", session.display())]
+    Unprepared {
+        /// The session.
+        session: std::path::PathBuf,
+        /// What it lacks.
+        missing: &'static str,
+    },
+    /// A simulated capture with nothing to write.
+    #[error("no scene layout to write")]
+    NoLayout,
+}

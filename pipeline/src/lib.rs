@@ -1,0 +1,20 @@
+//! The stages of rmvp joined into whole jobs, each a function with an options struct whose
+//! `Default` holds its defaults, and typed records for what it writes:
+//!
+//! - [`simulate`]: a synthetic polarized capture of a mesh (render, sensor frames, layouts);
+//! - [`ground_truth`]: normal, mask and depth maps of a mesh in every view of a scene;
+//! - [`build`]: datasets from posed, masked capture sessions;
+//! - [`demo`]: the built-in example end to end: simulate, process raw frames, build the
+//!   dataset, compare with the truth, reconstruct, evaluate ([`demo::DemoReport`]).
+//!
+//! The command line (`rmvp`) only parses arguments, builds options, calls these and prints.
+
+#![warn(missing_docs)]
+
+pub mod build;
+pub mod demo;
+pub mod error;
+pub mod ground_truth;
+pub mod simulate;
+
+pub use error::{Error, Result};
