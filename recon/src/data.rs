@@ -97,13 +97,19 @@ pub struct TrainingSet {
     pub frame: Frame,
     /// Factor applied to the input Stokes (so that bright object pixels sit near 0.5).
     pub stokes_scale: f32,
-    /// Candidate training rays: (view, pixel) in the dilated masks, hitting the unit sphere.
+    /// Candidate training rays on the object: (view, pixel) in the dilated masks, hitting the
+    /// unit sphere.
     pub pool: Vec<(u32, u32)>,
+    /// Candidate rays of the background: (view, pixel) outside the dilated masks whose ray
+    /// still crosses the unit sphere. Only the mask loss sees them; without them, space that
+    /// no object ray passes through is never carved.
+    pub background: Vec<(u32, u32)>,
 }
 
 impl TrainingSet {
-    /// Collect the train views of `scene` (Stokes and masks required); rays are drawn from the
-    /// masks dilated by `margin` pixels.
+    /// Collect the train views of `scene` (Stokes and masks required); object rays are drawn
+    /// from the masks dilated by `margin` pixels, background rays from the rest of the unit
+    /// sphere's footprint.
     pub fn from_scene(scene: &Scene, margin: usize) -> Result<Self> {
         let frame = Frame::new(scene.normalization)?;
         let mut views = Vec::new();
@@ -169,17 +175,17 @@ impl TrainingSet {
         for v in &mut views {
             v.stokes.iter_mut().for_each(|x| *x *= stokes_scale);
         }
-        let mut pool = Vec::new();
+        let (mut pool, mut background) = (Vec::new(), Vec::new());
         for (vi, v) in views.iter().enumerate() {
             let (w, h) = (v.camera.width as usize, v.camera.height as usize);
             let dilated = dilate(&v.mask, w, h, margin);
-            for (k, _) in dilated.iter().enumerate().filter(|(_, &d)| d) {
+            for (k, &near_object) in dilated.iter().enumerate() {
                 if frame.pixel_ray(&v.camera, (k % w) as u32, (k / w) as u32).is_some() {
-                    pool.push((vi as u32, k as u32));
+                    if near_object { &mut pool } else { &mut background }.push((vi as u32, k as u32));
                 }
             }
         }
-        Ok(Self { views, frame, stokes_scale, pool })
+        Ok(Self { views, frame, stokes_scale, pool, background })
     }
 
     /// The ray of a pool entry.

@@ -8,6 +8,7 @@
 use crate::data::TrainingSet;
 use crate::model::Model;
 use crate::pbrdf::dot;
+use crate::trace::{sphere_trace, TraceLimits, TraceRay};
 use crate::volume::unit_sphere_span;
 
 /// The two tangent directions one view gives at a surface point.
@@ -49,10 +50,10 @@ pub fn tangent_loss(n: [f32; 3], views: &[Tangents]) -> (f32, [f32; 3]) {
     (loss / m, [0, 1, 2].map(|k| (du[k] - u[k] * along) / len / m))
 }
 
-/// Sphere-tracing settings for visibility.
+/// Visibility tracing starts this far from the surface point.
 const START: f32 = 0.02;
-const HIT: f32 = 1e-3;
-const MAX_STEPS: usize = 48;
+/// Visibility tracing: full SDF steps (as trained so far), at most 48.
+const VISIBILITY: TraceLimits = TraceLimits { step_scale: 1.0, max_step: f32::INFINITY, max_steps: 48 };
 
 /// For each surface point (unit frame) with its outward normal, the tangents of every training
 /// view that sees it (in front of the camera, inside the image and the view's mask, facing the
@@ -107,31 +108,10 @@ pub fn tangents(
         }
     }
     // Batched sphere tracing towards each camera.
-    let mut depth: Vec<f32> = vec![START; queries.len()];
-    let mut occluded = vec![false; queries.len()];
-    let mut active: Vec<usize> = (0..queries.len()).filter(|&q| START < queries[q].exit).collect();
-    for _ in 0..MAX_STEPS {
-        if active.is_empty() {
-            break;
-        }
-        let pts: Vec<f32> = active
-            .iter()
-            .flat_map(|&q| [0, 1, 2].map(|k| queries[q].origin[k] + depth[q] * queries[q].dir[k]))
-            .collect();
-        let sdf = model.field.sdf(params, &pts, level_weight);
-        let mut next = Vec::with_capacity(active.len());
-        for (&q, &s) in active.iter().zip(&sdf) {
-            if s < HIT {
-                occluded[q] = true;
-                continue;
-            }
-            depth[q] += s;
-            if depth[q] < queries[q].exit {
-                next.push(q);
-            }
-        }
-        active = next;
-    }
+    let rays: Vec<TraceRay> =
+        queries.iter().map(|q| TraceRay { origin: q.origin, dir: q.dir, start: START, end: q.exit }).collect();
+    let occluded: Vec<bool> =
+        sphere_trace(model, params, level_weight, &rays, VISIBILITY).iter().map(Option::is_some).collect();
     let mut out = vec![Vec::new(); points.len()];
     for (q, query) in queries.iter().enumerate() {
         if !occluded[q] {

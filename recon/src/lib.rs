@@ -5,10 +5,12 @@
 //!   backward passes); [`model`]: presets, the SDF field and the radiance networks;
 //!   [`pbrdf`]: Fresnel degrees of polarization and azimuths;
 //! - [`samples`]: the field at sample points (finite-difference normals and Laplacians);
-//!   [`volume`]: NeuS sampling, shading and compositing; [`geometric`]: the AoP tangent-space
-//!   loss with visibility; [`losses`]: the loss terms by name;
+//!   [`volume`]: NeuS sampling, shading and compositing (and its forward-only twin);
+//!   [`trace`]: sphere tracing of the SDF; [`geometric`]: the AoP tangent-space loss with
+//!   visibility; [`losses`]: the loss terms by name;
 //! - [`data`]: the training set in the unit sphere; [`train`]: steps and checkpoints;
-//! - [`extract`]: marching tetrahedra; [`output`]: normal maps and re-rendered Stokes;
+//! - [`extract`]: marching tetrahedra; [`output`]: normal maps and re-rendered Stokes where
+//!   the surface is (forward only);
 //!   [`reconstruct`]: a whole run in a folder.
 
 #![warn(missing_docs)]
@@ -26,6 +28,7 @@ pub mod output;
 pub mod pbrdf;
 pub mod reconstruct;
 pub mod samples;
+pub mod trace;
 pub mod train;
 pub mod volume;
 

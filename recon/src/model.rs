@@ -172,11 +172,15 @@ impl Field {
         }
     }
 
+    /// `(n x outputs)` for `points` (n x 3), keeping nothing (inference).
+    pub fn infer(&self, params: &[f32], points: &[f32], level_weight: &[f32]) -> Vec<f32> {
+        let input = self.encode(params, points, level_weight);
+        self.mlp.infer(params, &input, points.len() / 3)
+    }
+
     /// The SDF alone (inference).
     pub fn sdf(&self, params: &[f32], points: &[f32], level_weight: &[f32]) -> Vec<f32> {
-        let input = self.encode(params, points, level_weight);
-        let out = self.mlp.infer(params, &input, points.len() / 3);
-        out.chunks_exact(self.outputs()).map(|r| r[0]).collect()
+        self.infer(params, points, level_weight).chunks_exact(self.outputs()).map(|r| r[0]).collect()
     }
 
     fn init(&self, params: &mut [f32], rng: &mut Rng) {
@@ -249,9 +253,16 @@ impl Radiance {
         }
     }
 
-    /// Shade `n` samples into Stokes vectors (n x 9). `diffuse_only` switches the specular lobe
-    /// off (NeRSP's first iterations).
-    pub fn shade(&self, params: &[f32], s: &ShadingInput, diffuse_only: bool, cache: &mut ShadingCache) -> Vec<f32> {
+    /// Shade `n` samples into Stokes vectors (n x 9), keeping what backward needs in `cache`
+    /// when there is one. `diffuse_only` switches the specular lobe off (NeRSP's first
+    /// iterations).
+    pub fn shade(
+        &self,
+        params: &[f32],
+        s: &ShadingInput,
+        diffuse_only: bool,
+        mut cache: Option<&mut ShadingCache>,
+    ) -> Vec<f32> {
         let n = s.points.len() / 3;
         let f = self.features;
         let row3 = |a: &[f32], i: usize| [a[3 * i], a[3 * i + 1], a[3 * i + 2]];
@@ -261,32 +272,43 @@ impl Radiance {
             input.extend_from_slice(&s.normals[3 * i..3 * i + 3]);
             input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
         }
-        let diffuse_rgb: Vec<f32> =
-            self.diffuse.forward(params, &input, n, &mut cache.diffuse).iter().map(|&x| sigmoid(x)).collect();
-        cache.diffuse_only = diffuse_only;
+        let diffuse_rgb: Vec<f32> = self
+            .diffuse
+            .evaluate(params, &input, n, cache.as_deref_mut().map(|c| &mut c.diffuse))
+            .iter()
+            .map(|&x| sigmoid(x))
+            .collect();
         let mut specular_rgb = vec![0f32; 3 * n];
+        let (mut roughness_value, mut ide_jacobian) = (Vec::new(), Vec::new());
         if !diffuse_only {
             let mut input = Vec::with_capacity(n * (3 + f));
             for i in 0..n {
                 input.extend_from_slice(&s.points[3 * i..3 * i + 3]);
                 input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
             }
-            cache.roughness_value =
-                self.roughness.forward(params, &input, n, &mut cache.roughness).iter().map(|&x| sigmoid(x)).collect();
+            roughness_value = self
+                .roughness
+                .evaluate(params, &input, n, cache.as_deref_mut().map(|c| &mut c.roughness))
+                .iter()
+                .map(|&x| sigmoid(x))
+                .collect();
             let mut input = Vec::with_capacity(n * (IDE_WIDTH + 1 + f));
-            cache.ide_jacobian.clear();
             for i in 0..n {
                 let (nv, v) = (row3(s.normals, i), row3(s.view, i));
                 let c = dot(nv, v);
                 let reflected = [0, 1, 2].map(|k| 2.0 * c * nv[k] - v[k]);
-                let (values, jac) = ide(reflected, cache.roughness_value[i]);
+                let (values, jac) = ide(reflected, roughness_value[i]);
                 input.extend_from_slice(&values);
                 input.push(c);
                 input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
-                cache.ide_jacobian.push(jac);
+                ide_jacobian.push(jac);
             }
-            specular_rgb =
-                self.specular.forward(params, &input, n, &mut cache.specular).iter().map(|&x| sigmoid(x)).collect();
+            specular_rgb = self
+                .specular
+                .evaluate(params, &input, n, cache.as_deref_mut().map(|c| &mut c.specular))
+                .iter()
+                .map(|&x| sigmoid(x))
+                .collect();
         }
         let mut stokes = vec![0f32; STOKES * n];
         for i in 0..n {
@@ -302,8 +324,13 @@ impl Radiance {
                 out[6 + ch] = polarized * s2;
             }
         }
-        cache.diffuse_rgb = diffuse_rgb;
-        cache.specular_rgb = specular_rgb;
+        if let Some(cache) = cache {
+            cache.diffuse_only = diffuse_only;
+            cache.roughness_value = roughness_value;
+            cache.ide_jacobian = ide_jacobian;
+            cache.diffuse_rgb = diffuse_rgb;
+            cache.specular_rgb = specular_rgb;
+        }
         stokes
     }
 

@@ -10,7 +10,7 @@ use crate::{Error, Result};
 use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::{exr, png};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, normal_picture, preview};
-use rmvp_dataset::{Image, Scene, Split};
+use rmvp_dataset::{Scene, Split};
 use std::io::Write;
 use std::path::Path;
 
@@ -150,25 +150,23 @@ pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, mesh_resoluti
     }
     let mut tiles = Vec::new();
     for view in &scene.views {
-        let r = render_view(trainer, &view.camera);
+        let train = view.split == Split::Train;
+        let r = render_view(trainer, &view.camera, view.mask.as_ref(), train);
         exr::write_exr(&normals_dir.join(format!("{}.exr", view.name)), &r.normals, &["N.X", "N.Y", "N.Z"])?;
         png::write_png_u8(&normals_dir.join(format!("{}.png", view.name)), &normal_picture(&r.normals))?;
-        if view.split != Split::Train {
-            continue;
-        }
-        for (name, img) in [("s0", &r.stokes.s0), ("s1", &r.stokes.s1), ("s2", &r.stokes.s2)] {
+        let Some((stokes, _)) = &r.stokes else { continue };
+        for (name, img) in [("s0", &stokes.s0), ("s1", &stokes.s1), ("s2", &stokes.s2)] {
             exr::write_exr(&stokes_dir.join(format!("{}_{name}.exr", view.name)), img, &["R", "G", "B"])?;
         }
         if let Some(input) = &view.stokes {
             let mask = view.mask.as_ref();
             let (aop_in, dop_in) = input.aop_dop();
-            let (aop_out, dop_out) = r.stokes.aop_dop();
-            let ours_mask: Image<u8> = r.opacity.map(|a| if a > 0.5 { 255 } else { 0 });
+            let (aop_out, dop_out) = stokes.aop_dop();
             tiles.extend([
                 preview(&input.s0),
-                preview(&r.stokes.s0),
+                preview(&stokes.s0),
                 aop_picture(&aop_in, &dop_in, mask),
-                aop_picture(&aop_out, &dop_out, Some(&ours_mask)),
+                aop_picture(&aop_out, &dop_out, Some(&r.mask)),
                 normal_picture(&r.normals),
             ]);
         }

@@ -28,6 +28,21 @@ pub struct FieldSamples {
     cache: FieldCache,
 }
 
+/// The points followed by their six finite-difference neighbours, offset by `step`, in
+/// [`OFFSETS`] order.
+fn with_neighbours(points: &[f32], step: f32) -> Vec<f32> {
+    let mut all = Vec::with_capacity(7 * points.len());
+    all.extend_from_slice(points);
+    for (axis, sign) in OFFSETS {
+        for p in points.chunks_exact(3) {
+            let mut q = [p[0], p[1], p[2]];
+            q[axis] += sign * step;
+            all.extend(q);
+        }
+    }
+    all
+}
+
 /// Gradients of a loss with respect to what [`FieldSamples`] holds (each `None`-free, sized
 /// like the quantity).
 pub struct FieldGrad<'a> {
@@ -44,20 +59,24 @@ pub struct FieldGrad<'a> {
 }
 
 impl FieldSamples {
-    /// Evaluate the field at `points` (n x 3) with finite-difference step `step`.
+    /// Evaluate the field at `points` (n x 3) with finite-difference step `step`, keeping what
+    /// [`FieldSamples::backward`] needs.
     pub fn evaluate(model: &Model, params: &[f32], level_weight: &[f32], points: Vec<f32>, step: f32) -> Self {
-        let n = points.len() / 3;
-        let mut all = Vec::with_capacity(7 * 3 * n);
-        all.extend_from_slice(&points);
-        for (axis, sign) in OFFSETS {
-            for p in points.chunks_exact(3) {
-                let mut q = [p[0], p[1], p[2]];
-                q[axis] += sign * step;
-                all.extend(q);
-            }
-        }
         let mut cache = FieldCache::default();
-        let out = model.field.forward(params, &all, level_weight, &mut cache);
+        let out = model.field.forward(params, &with_neighbours(&points, step), level_weight, &mut cache);
+        Self::from_outputs(model, points, &out, step, cache)
+    }
+
+    /// The same without keeping anything for a backward pass (inference).
+    pub fn infer(model: &Model, params: &[f32], level_weight: &[f32], points: Vec<f32>, step: f32) -> Self {
+        let out = model.field.infer(params, &with_neighbours(&points, step), level_weight);
+        Self::from_outputs(model, points, &out, step, FieldCache::default())
+    }
+
+    /// SDF, gradients, normals, Laplacians and features from the field's outputs at the points
+    /// and their neighbours.
+    fn from_outputs(model: &Model, points: Vec<f32>, out: &[f32], step: f32, cache: FieldCache) -> Self {
+        let n = points.len() / 3;
         let width = model.field.outputs();
         let sdf: Vec<f32> = (0..n).map(|i| out[i * width]).collect();
         let features: Vec<f32> = (0..n).flat_map(|i| out[i * width + 1..(i + 1) * width].iter().copied()).collect();

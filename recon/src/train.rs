@@ -43,8 +43,12 @@ pub struct TrainConfig {
     pub geometric: bool,
     /// Initial iterations with the diffuse lobe and S0 only, no geometric loss.
     pub diffuse_only: u32,
-    /// Dilation of the masks that training rays are drawn from, pixels.
+    /// Dilation of the masks that object rays are drawn from, pixels.
     pub margin: usize,
+    /// Share of each batch drawn from the background (rays that cross the unit sphere outside
+    /// the dilated masks), which only the mask loss sees.
+    #[serde(default)]
+    pub background_share: f32,
     /// Hash-grid levels active at the start; one more every `anneal_every` iterations.
     pub start_levels: usize,
     /// Iterations between two hash-grid levels.
@@ -52,6 +56,9 @@ pub struct TrainConfig {
     /// Random seed.
     pub seed: u64,
 }
+
+/// Default share of background rays in a batch.
+pub const BACKGROUND_SHARE: f32 = 0.25;
 
 /// Rays per chunk of a batch; chunks run in parallel and are summed in order.
 const CHUNK_RAYS: usize = 32;
@@ -104,6 +111,7 @@ impl TrainConfig {
             geometric: true,
             diffuse_only: 1000.min(iterations / 10),
             margin: 8,
+            background_share: BACKGROUND_SHARE,
             start_levels,
             anneal_every,
             seed: 0,
@@ -221,8 +229,18 @@ impl Trainer {
     pub fn step(&mut self) -> StepReport {
         let it = self.iteration;
         let mut rng = Rng::for_pixel(self.config.seed, it, 0);
-        let batch: Vec<(u32, u32)> =
-            (0..self.config.batch_rays).map(|_| self.set.pool[rng.next_u32() as usize % self.set.pool.len()]).collect();
+        let set = &self.set;
+        let from_background = if set.background.is_empty() {
+            0
+        } else {
+            (self.config.background_share * self.config.batch_rays as f32).round() as usize
+        };
+        let batch: Vec<(u32, u32)> = (0..self.config.batch_rays)
+            .map(|i| {
+                let pool = if i < from_background { &set.background } else { &set.pool };
+                pool[rng.next_u32() as usize % pool.len()]
+            })
+            .collect();
         let jitter: Vec<f32> = (0..batch.len()).map(|_| rng.next_f32()).collect();
         let masked_total = batch.iter().filter(|&&(v, p)| self.set.views[v as usize].mask[p as usize]).count().max(1);
         let level_weight = self.level_weight();

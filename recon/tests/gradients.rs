@@ -230,7 +230,7 @@ fn shading_networks_and_pbrdf() {
         let run = |p: &[f32], normals: &[f32], features: &[f32]| {
             let input =
                 ShadingInput { points: &points, normals, features, view: &view, frame_x: &frame_x, frame_y: &frame_y };
-            weighted(&model.radiance.shade(p, &input, diffuse_only, &mut ShadingCache::default()), &w)
+            weighted(&model.radiance.shade(p, &input, diffuse_only, Some(&mut ShadingCache::default())), &w)
         };
         let mut cache = ShadingCache::default();
         let input = ShadingInput {
@@ -241,7 +241,7 @@ fn shading_networks_and_pbrdf() {
             frame_x: &frame_x,
             frame_y: &frame_y,
         };
-        model.radiance.shade(&params, &input, diffuse_only, &mut cache);
+        model.radiance.shade(&params, &input, diffuse_only, Some(&mut cache));
         let mut grad = vec![0f32; params.len()];
         let (dn, df) = model.radiance.shade_backward(&params, &input, &cache, &w, &mut grad);
         let network: Vec<usize> = (0..params.len()).filter(|&i| grad[i] != 0.0).collect();

@@ -183,15 +183,16 @@ impl Mlp {
 
     /// `outputs (rows x outputs) = f(inputs (rows x inputs))`, keeping what backward needs.
     pub fn forward(&self, params: &[f32], input: &[f32], rows: usize, cache: &mut MlpCache) -> Vec<f32> {
-        self.run(params, input, rows, Some(cache))
+        self.evaluate(params, input, rows, Some(cache))
     }
 
     /// Forward without keeping anything (inference).
     pub fn infer(&self, params: &[f32], input: &[f32], rows: usize) -> Vec<f32> {
-        self.run(params, input, rows, None)
+        self.evaluate(params, input, rows, None)
     }
 
-    fn run(&self, params: &[f32], input: &[f32], rows: usize, mut cache: Option<&mut MlpCache>) -> Vec<f32> {
+    /// Forward, keeping what backward needs in `cache` when there is one.
+    pub fn evaluate(&self, params: &[f32], input: &[f32], rows: usize, mut cache: Option<&mut MlpCache>) -> Vec<f32> {
         debug_assert_eq!(input.len(), rows * self.inputs);
         if let Some(c) = cache.as_deref_mut() {
             c.rows = rows;
