@@ -30,6 +30,8 @@ enum Command {
     Cameras,
     /// Run a simulated polarization camera (GigE Vision on loopback) until killed.
     SimulateCamera(capture::SimulateCameraArgs),
+    /// Write the calibration board as a page to print (PNG at its true size).
+    Board(board::Args),
     /// Camera intrinsics from views of a calibration board (a session or images).
     Calibrate(calibrate::Args),
     /// Camera poses of a session's views: ChArUco board, COLMAP, turntable or imported.
@@ -71,6 +73,7 @@ fn main() {
         Command::Capture(args) => capture::run(args),
         Command::Cameras => capture::cameras(),
         Command::SimulateCamera(args) => capture::simulate_camera(args),
+        Command::Board(args) => board::run(args),
         Command::Calibrate(args) => calibrate::run(args),
         Command::Poses(args) => poses::run(args),
         Command::Masks(args) => masks::run(args),

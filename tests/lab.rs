@@ -5,12 +5,12 @@
 //! truth, and NeRSP on six views with the estimated poses and masks against the same run with
 //! the true ones. Failures of each step are refused by name, leaving the session as it was.
 
-use nalgebra::{Matrix3, Vector3};
 use rmvp_align::normal_errors;
 use rmvp_calib::board::BoardSpec;
 use rmvp_calib::intrinsics::CameraCalibration;
 use rmvp_calib::lab::LabSetup;
 use rmvp_calib::normalization::visual_hull_sphere;
+use rmvp_calib::poses::accuracy::pose_errors;
 use rmvp_calib::poses::PoseSet;
 use rmvp_calib::scene::posed_scene;
 use rmvp_capture::simulator::{SimulatedScene, SimulatedSetup, SimulatorConfig};
@@ -61,27 +61,6 @@ fn capture(dir: &Path, views: usize, setup: &[&str]) {
     args.extend(["--average", "4", "--views", &views, "-o", s(dir)]);
     args.extend_from_slice(setup);
     ok(&args);
-}
-
-fn angle_deg(r: &Matrix3<f64>) -> f64 {
-    ((r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
-}
-
-/// The similarity `x -> s R x + t` that best maps `from` onto `to` (Umeyama 1991).
-fn similarity(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> (f64, Matrix3<f64>, Vector3<f64>) {
-    let n = from.len() as f64;
-    let (mf, mt) = (from.iter().sum::<Vector3<f64>>() / n, to.iter().sum::<Vector3<f64>>() / n);
-    let covariance = from.iter().zip(to).map(|(f, t)| (t - mt) * (f - mf).transpose()).sum::<Matrix3<f64>>() / n;
-    let variance = from.iter().map(|f| (f - mf).norm_squared()).sum::<f64>() / n;
-    let svd = covariance.svd(true, true);
-    let (u, v_t) = (svd.u.unwrap(), svd.v_t.unwrap());
-    let mut d = Matrix3::identity();
-    if (u * v_t).determinant() < 0.0 {
-        d[(2, 2)] = -1.0;
-    }
-    let r = u * d * v_t;
-    let scale = (svd.singular_values.component_mul(&d.diagonal())).sum() / variance;
-    (scale, r, mt - scale * r * mf)
 }
 
 /// Train the fast preset on `scene` and return the mean normal error over `truth`'s views.
@@ -140,12 +119,9 @@ fn a_lab_session_becomes_posed_masked_views() {
     assert_eq!((charuco.views.len(), charuco.failed.len()), (24, 0));
     // Every camera is this far from the object.
     let distance = lab_setup().distance_mm;
-    let (mut worst_deg, mut worst_rel) = (0f64, 0f64);
-    for (view, camera) in charuco.views.iter().zip(cameras) {
-        let found = Camera::try_from(&view.camera).unwrap();
-        worst_deg = worst_deg.max(angle_deg(&(found.r * camera.r.transpose())));
-        worst_rel = worst_rel.max((found.center() - camera.center()).norm() / distance);
-    }
+    let found: Vec<Camera> = charuco.views.iter().map(|v| Camera::try_from(&v.camera).unwrap()).collect();
+    let errors = pose_errors(&found, cameras, false);
+    let (worst_deg, worst_rel) = (errors.max_rotation_deg(), errors.max_centre_distance() / distance);
     eprintln!("charuco poses: rotation error at most {worst_deg:.4} deg, centres within {:.4} %", 100.0 * worst_rel);
     assert!(worst_deg < 0.1 && worst_rel < 0.002, "{worst_deg} deg, {worst_rel}");
 
@@ -186,7 +162,7 @@ fn a_lab_session_becomes_posed_masked_views() {
     let mean_iou = ious.iter().sum::<f64>() / ious.len() as f64;
     let min_iou = ious.iter().copied().fold(1.0, f64::min);
     eprintln!("masks: IoU mean {mean_iou:.4}, lowest {min_iou:.4}");
-    assert!(mean_iou > 0.98 && min_iou > 0.95, "IoU mean {mean_iou:.4}, lowest {min_iou:.4}");
+    assert!(mean_iou > 0.98 && min_iou > 0.97, "IoU mean {mean_iou:.4}, lowest {min_iou:.4}");
     assert!(masks.join("contact_sheet.png").is_file() && lab.join("masks/005.png").is_file());
 
     // COLMAP, the object painted out by the session's masks: right up to a similarity.
@@ -209,16 +185,8 @@ fn a_lab_session_becomes_posed_masked_views() {
     ok(&["poses", s(&lab), "--method", "import", "--from", s(&lab.join("colmap/sparse/0")), "-o", s(&imported_file)]);
     assert_eq!(PoseSet::read(&imported_file).unwrap().views, colmap.views);
     let estimated: Vec<Camera> = colmap.views.iter().map(|v| Camera::try_from(&v.camera).unwrap()).collect();
-    let (scale, rotation, translation) = similarity(
-        &estimated.iter().map(|c| c.center().coords).collect::<Vec<_>>(),
-        &cameras.iter().map(|c| c.center().coords).collect::<Vec<_>>(),
-    );
-    let (mut worst_deg, mut worst_rel) = (0f64, 0f64);
-    for (found, camera) in estimated.iter().zip(cameras) {
-        let centre = scale * rotation * found.center().coords + translation;
-        worst_deg = worst_deg.max(angle_deg(&(found.r * rotation.transpose() * camera.r.transpose())));
-        worst_rel = worst_rel.max((centre - camera.center().coords).norm() / distance);
-    }
+    let errors = pose_errors(&estimated, cameras, true);
+    let (worst_deg, worst_rel) = (errors.max_rotation_deg(), errors.max_centre_distance() / distance);
     eprintln!(
         "colmap poses after a similarity: rotation error at most {worst_deg:.4} deg, centres within {:.4} %",
         100.0 * worst_rel

@@ -235,6 +235,26 @@ impl Board {
         Ok(Image::from_vec(w, h, 1, data)?)
     }
 
+    /// The board as a page to print: [`Board::draw`] at `dpi` with a white margin of
+    /// `margin_mm` all round (detectors need a quiet zone beyond the outer squares), written by
+    /// [`write_printable`] with its resolution so that it prints at its true size.
+    pub fn printable(&self, dpi: f64, margin_mm: f64) -> Result<Image<u8>> {
+        if !(dpi.is_finite() && dpi >= 50.0 && margin_mm.is_finite() && margin_mm >= 0.0) {
+            return Err(Error::Board(format!("a page at {dpi} dpi with a {margin_mm} mm margin")));
+        }
+        let px_per_mm = dpi / 25.4;
+        let board = self.draw(px_per_mm)?;
+        let margin = (margin_mm * px_per_mm).round() as usize;
+        let (w, h) = (board.width() + 2 * margin, board.height() + 2 * margin);
+        let mut page = Image::from_vec(w, h, 1, vec![255u8; w * h])?;
+        for y in 0..board.height() {
+            let row = &board.data()[y * board.width()..(y + 1) * board.width()];
+            let start = (y + margin) * w + margin;
+            page.data_mut()[start..start + board.width()].copy_from_slice(row);
+        }
+        Ok(page)
+    }
+
     /// The printed board as a mesh: one quad in the board frame's `z = 0` plane with texture
     /// coordinates for [`Board::albedo_texture`] (for rendering a simulated lab).
     pub fn plane_mesh(&self) -> Mesh {
@@ -377,4 +397,10 @@ impl Board {
 /// -Z, the frame environment maps are stored in.
 pub fn board_to_y_up() -> Matrix3<f64> {
     Matrix3::new(1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0)
+}
+
+/// Write `page` ([`Board::printable`]) as a PNG that states `dpi`, so that printing it at
+/// 100 % gives squares of the specified size.
+pub fn write_printable(path: &std::path::Path, page: &Image<u8>, dpi: f64) -> Result<()> {
+    Ok(rmvp_dataset::io::png::write_png_u8_for_print(path, page, dpi)?)
 }

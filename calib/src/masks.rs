@@ -90,7 +90,7 @@ impl Default for MaskOptions {
             threshold: None,
             difference: 0.25,
             open_px: 2,
-            close_px: 4,
+            close_px: 8,
             band_px: 15,
             iterations: 5,
             background: None,
@@ -242,6 +242,11 @@ const POLARIZATION_CHANGE: f32 = 0.08;
 /// [`SHADOW_CHROMA`]: the object's shadow); and wherever the linear polarization changed by
 /// more than [`POLARIZATION_CHANGE`] of S0 (a shadow darkens, it does not polarize: the
 /// object's silhouette, seen at grazing angles, is where it polarizes most). Cleaned.
+///
+/// A dark part of the object (an unlit belly) over a bright part of the plate (the white
+/// border of a board marker) looks exactly like a shadow there and is missed: strips as wide
+/// as those borders; the default closing (8 px) fills them (on the simulated lab it raised
+/// the lowest view's IoU from 0.967 to 0.982).
 pub fn difference_mask(stokes: &Stokes, plate: &Stokes, options: &MaskOptions) -> Result<Image<u8>> {
     let white = quantile(plate.s0.data(), 0.995).max(1e-12);
     let c = stokes.s0.channels();

@@ -65,7 +65,11 @@ pub fn undistort_view(view: &View) -> View {
     let mut out = view.clone();
     out.camera.distortion = None;
     out.projection = None;
-    out.stokes = view.stokes.as_ref().map(|s| Stokes { s0: bilinear(&s.s0, &at), s1: bilinear(&s.s1, &at), s2: bilinear(&s.s2, &at) });
+    out.stokes = view.stokes.as_ref().map(|s| Stokes {
+        s0: bilinear(&s.s0, &at),
+        s1: bilinear(&s.s1, &at),
+        s2: bilinear(&s.s2, &at),
+    });
     out.mask = view.mask.as_ref().map(|m| nearest(m, &at));
     out.normals = view.normals.as_ref().map(|n| bilinear(n, &at));
     out.depth = view.depth.as_ref().map(|d| bilinear(d, &at));
@@ -81,7 +85,13 @@ mod tests {
 
     #[test]
     fn a_point_lands_where_the_pinhole_camera_projects_it() {
-        let mut camera = Camera::new(Matrix3::new(300.0, 0.0, 80.0, 0.0, 300.0, 60.0, 0.0, 0.0, 1.0), Matrix3::identity(), Vector3::new(0.0, 0.0, 2.0), 160, 120);
+        let mut camera = Camera::new(
+            Matrix3::new(300.0, 0.0, 80.0, 0.0, 300.0, 60.0, 0.0, 0.0, 1.0),
+            Matrix3::identity(),
+            Vector3::new(0.0, 0.0, 2.0),
+            160,
+            120,
+        );
         camera.distortion = Some(Distortion { k1: -0.2, k2: 0.05, p1: 0.001, p2: 0.0, k3: 0.0 });
         // A bright dot where the distorted camera sees the point (0.3, 0.2, 0).
         let point = Point3::new(0.3, 0.2, 0.0);
@@ -94,8 +104,15 @@ mod tests {
         let pinhole = Camera { distortion: None, ..camera };
         let want = pinhole.project(&point).unwrap();
         let m = flat.mask.unwrap();
-        let found: Vec<(usize, usize)> = (0..160 * 120).filter(|&k| m.data()[k] > 0).map(|k| (k % 160, k / 160)).collect();
-        assert!(!found.is_empty() && found.iter().all(|&(x, y)| (x as f64 + 0.5 - want.x).abs() <= 1.5 && (y as f64 + 0.5 - want.y).abs() <= 1.5), "{found:?} vs {want:?}");
+        let found: Vec<(usize, usize)> =
+            (0..160 * 120).filter(|&k| m.data()[k] > 0).map(|k| (k % 160, k / 160)).collect();
+        assert!(
+            !found.is_empty()
+                && found
+                    .iter()
+                    .all(|&(x, y)| (x as f64 + 0.5 - want.x).abs() <= 1.5 && (y as f64 + 0.5 - want.y).abs() <= 1.5),
+            "{found:?} vs {want:?}"
+        );
         assert!(flat.camera.distortion.is_none());
     }
 }

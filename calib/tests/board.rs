@@ -142,3 +142,29 @@ fn a_chessboard_calibrates_too() {
     assert_eq!(run.calibration.images.len() + run.calibration.rejected.len(), 12);
     assert!(Board::new(&BoardSpec { dictionary: "9X9".into(), ..BoardSpec::default() }).is_err());
 }
+
+#[test]
+fn the_printable_page_prints_at_true_size_and_its_corners_are_where_the_board_frame_says() {
+    let spec = BoardSpec::default();
+    let board = Board::new(&spec).unwrap();
+    let (dpi, margin_mm) = (200.0, 10.0);
+    let page = board.printable(dpi, margin_mm).unwrap();
+    let px_per_mm = dpi / 25.4;
+    let [w, h] = spec.size_mm();
+    assert_eq!(page.size(), (((w + 20.0) * px_per_mm).round() as usize, ((h + 20.0) * px_per_mm).round() as usize));
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("board.png");
+    rmvp_calib::board::write_printable(&path, &page, dpi).unwrap();
+    let stated = rmvp_dataset::io::png::read_png_dpi(&path).unwrap().unwrap();
+    assert!((stated - dpi).abs() < 0.01, "{stated} dpi");
+    // The page scanned flat: every corner found sits at its board coordinates (x right,
+    // y up from the lower-left corner of the printed board).
+    let found = board.detect(&page).unwrap();
+    assert_eq!(found.len(), 35);
+    let margin = margin_mm * px_per_mm;
+    for (pixel, point) in found.pixels.iter().zip(&found.points) {
+        let (x, y) = ((pixel.x - margin) / px_per_mm, h - (pixel.y - margin) / px_per_mm);
+        assert!((x - point.x).abs() < 0.1 && (y - point.y).abs() < 0.1, "{pixel} vs {point}");
+    }
+    assert!(board.printable(10.0, 5.0).is_err());
+}

@@ -35,7 +35,9 @@ impl std::str::FromStr for TrainViews {
         match text.parse::<usize>() {
             Ok(0) => Err("at least one training view".into()),
             Ok(n) if !text.contains(',') => Ok(TrainViews::Count(n)),
-            _ => Ok(TrainViews::Names(text.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect())),
+            _ => {
+                Ok(TrainViews::Names(text.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect()))
+            }
         }
     }
 }
@@ -64,14 +66,18 @@ pub fn spread_views(cameras: &[(String, Camera)], centre: &Vector3<f64>, count: 
     let directions: Vec<Vector3<f64>> = cameras.iter().map(|(_, c)| (c.center().coords - centre).normalize()).collect();
     let mean = directions.iter().sum::<Vector3<f64>>();
     let mut chosen = Vec::new();
-    if let Some(first) = (0..directions.len()).max_by(|&a, &b| directions[a].dot(&mean).total_cmp(&directions[b].dot(&mean))) {
+    if let Some(first) =
+        (0..directions.len()).max_by(|&a, &b| directions[a].dot(&mean).total_cmp(&directions[b].dot(&mean)))
+    {
         chosen.push(first);
     }
     while chosen.len() < count.min(directions.len()) {
         let far = (0..directions.len())
             .filter(|i| !chosen.contains(i))
             .max_by(|&a, &b| {
-                let gap = |i: usize| chosen.iter().map(|&c| directions[i].dot(&directions[c])).fold(f64::NEG_INFINITY, f64::max);
+                let gap = |i: usize| {
+                    chosen.iter().map(|&c| directions[i].dot(&directions[c])).fold(f64::NEG_INFINITY, f64::max)
+                };
                 gap(b).total_cmp(&gap(a))
             })
             .expect("views left");

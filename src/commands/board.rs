@@ -1,6 +1,9 @@
-//! The calibration board's arguments, shared by every command that uses a board.
+//! `rmvp board -o board.png`: the calibration board as a page to print; and the board's
+//! arguments, shared by every command that uses a board.
 
-use rmvp_calib::board::{BoardKind, BoardSpec};
+use anyhow::Result;
+use rmvp_calib::board::{write_printable, Board, BoardKind, BoardSpec};
+use std::path::PathBuf;
 
 /// The printed board (defaults: the lab's ChArUco 8x6, 30 mm squares, 22 mm markers, 5X5_1000).
 #[derive(clap::Args, Clone, Debug)]
@@ -38,4 +41,45 @@ impl BoardArgs {
             dictionary: self.dictionary.clone(),
         }
     }
+}
+
+/// Arguments of `rmvp board`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The page to print (PNG that states its resolution).
+    #[arg(short, long, default_value = "board.png")]
+    output: PathBuf,
+    /// Print resolution, dots per inch.
+    #[arg(long, default_value_t = 300.0)]
+    dpi: f64,
+    /// White margin around the board, millimetres.
+    #[arg(long, default_value_t = 10.0)]
+    margin_mm: f64,
+    /// The board.
+    #[command(flatten)]
+    board: BoardArgs,
+}
+
+/// Run `rmvp board`: write the board's page and say how to print it.
+pub fn run(args: Args) -> Result<()> {
+    let spec = args.board.spec();
+    let board = Board::new(&spec)?;
+    let page = board.printable(args.dpi, args.margin_mm)?;
+    write_printable(&args.output, &page, args.dpi)?;
+    let [w, h] = spec.size_mm();
+    println!(
+        "wrote {} ({}x{} px at {} dpi): a {:?} board of {}x{} squares, {w} x {h} mm",
+        args.output.display(),
+        page.width(),
+        page.height(),
+        args.dpi,
+        spec.kind,
+        spec.squares[0],
+        spec.squares[1],
+    );
+    println!(
+        "print it at 100 % (no fit to page), glue it flat, measure a square and pass that as --square-mm \
+         (and the marker as --marker-mm) to calibrate and poses"
+    );
+    Ok(())
 }

@@ -26,6 +26,12 @@ pub struct Args {
     /// difference, grabcut: background plates (the empty rig, same view names).
     #[arg(long)]
     background: Option<PathBuf>,
+    /// Opening radius (removes specks), pixels.
+    #[arg(long, default_value_t = MaskOptions::default().open_px)]
+    open: u32,
+    /// Closing radius (fills cracks and thin gaps), pixels.
+    #[arg(long, default_value_t = MaskOptions::default().close_px)]
+    close: u32,
     /// grabcut: width of the undecided band around the first guess, pixels.
     #[arg(long, default_value_t = MaskOptions::default().band_px)]
     band: u32,
@@ -47,6 +53,8 @@ pub fn run(args: Args) -> Result<()> {
         threshold: args.threshold,
         difference: args.difference,
         band_px: args.band,
+        open_px: args.open,
+        close_px: args.close,
         background: args.background,
         mesh: args.mesh,
         folder: args.folder,

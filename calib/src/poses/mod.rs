@@ -3,8 +3,9 @@
 //! ([`charuco`]), from COLMAP ([`colmap`]), from the turntable positions the session recorded
 //! and a rig calibration ([`turntable`]), or imported from another tool's files ([`import`]).
 //! Every method gives a [`PoseSet`]: each posed view with its residual, and the views that
-//! failed with the reason.
+//! failed with the reason. [`accuracy`] compares poses with reference poses.
 
+pub mod accuracy;
 pub mod charuco;
 pub mod colmap;
 pub mod import;

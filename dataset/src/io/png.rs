@@ -65,12 +65,32 @@ fn color_type(channels: usize, path: &Path) -> Result<ColorType> {
 }
 
 fn write_png_bytes(path: &Path, w: usize, h: usize, c: usize, depth: BitDepth, bytes: &[u8]) -> Result<()> {
+    write_png_file(path, w, h, c, depth, bytes, None)
+}
+
+fn write_png_file(
+    path: &Path,
+    w: usize,
+    h: usize,
+    c: usize,
+    depth: BitDepth,
+    bytes: &[u8],
+    dpi: Option<f64>,
+) -> Result<()> {
     let color = color_type(c, path)?;
     write_atomically(path, |out| {
         let mut encoder = png::Encoder::new(out, w as u32, h as u32);
         encoder.set_color(color);
         encoder.set_depth(depth);
         encoder.set_compression(png::Compression::Fast);
+        if let Some(dpi) = dpi {
+            let per_metre = (dpi / 0.0254).round() as u32;
+            encoder.set_pixel_dims(Some(png::PixelDimensions {
+                xppu: per_metre,
+                yppu: per_metre,
+                unit: png::Unit::Meter,
+            }));
+        }
         let mut writer = encoder.write_header()?;
         writer.write_image_data(bytes)?;
         writer.finish()?;
@@ -96,6 +116,22 @@ pub fn encode_png_u8(image: &Image<u8>) -> Result<Vec<u8>> {
 pub fn write_png_u8(path: &Path, image: &Image<u8>) -> Result<()> {
     let (w, h) = image.size();
     write_png_bytes(path, w, h, image.channels(), BitDepth::Eight, image.data())
+}
+
+/// Write an 8-bit PNG that states its print resolution (`pHYs`, dots per inch), so that it
+/// prints at its true size.
+pub fn write_png_u8_for_print(path: &Path, image: &Image<u8>, dpi: f64) -> Result<()> {
+    let (w, h) = image.size();
+    write_png_file(path, w, h, image.channels(), BitDepth::Eight, image.data(), Some(dpi))
+}
+
+/// The print resolution a PNG states (dots per inch), if it states one in metres.
+pub fn read_png_dpi(path: &Path) -> Result<Option<f64>> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let reader = png::Decoder::new(BufReader::new(file))
+        .read_info()
+        .map_err(|e| Error::format(path, format!("not a readable PNG: {e}")))?;
+    Ok(reader.info().pixel_dims.filter(|d| d.unit == png::Unit::Meter).map(|d| d.xppu as f64 * 0.0254))
 }
 
 /// Write a 16-bit PNG (1 to 4 channels).

@@ -1,0 +1,180 @@
+//! From a simulated lab to posed, masked views: the time of each stage on 24 views at
+//! 1224x1024 (COLMAP's own steps from its logs), and the pose accuracy of the ChArUco and
+//! COLMAP methods against the rendered truth as the views drop from 24 to 12 to 6.
+//! `cargo bench --bench lab` (part of `./run bench`). The three sessions (calibration, object,
+//! empty lab) are captured once through the simulated camera into `target/tmp/bench-lab` and
+//! reused; delete that folder to capture them again.
+
+use rmvp_calib::board::BoardSpec;
+use rmvp_calib::lab::LabSetup;
+use rmvp_calib::poses::accuracy::pose_errors;
+use rmvp_calib::poses::PoseSet;
+use rmvp_capture::simulator::{SimulatedScene, SimulatedSetup, SimulatorConfig};
+use rmvp_dataset::session::SessionManifest;
+use rmvp_dataset::Camera;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+const VIEWS: usize = 24;
+const BOARD: [&str; 2] = ["--squares", "10x8"];
+
+fn rmvp(args: &[&str]) -> f64 {
+    let start = Instant::now();
+    let out = Command::new(env!("CARGO_BIN_EXE_rmvp")).args(args).output().expect("rmvp runs");
+    assert!(out.status.success(), "rmvp {args:?}:\n{}", String::from_utf8_lossy(&out.stderr));
+    start.elapsed().as_secs_f64()
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("UTF-8 path")
+}
+
+/// Capture `dir` unless a complete session is there; the seconds it took, if captured.
+fn session(dir: &Path, setup: &[&str]) -> Option<f64> {
+    if SessionManifest::read(dir).is_ok_and(|m| m.complete && m.views.len() == VIEWS) {
+        return None;
+    }
+    let _ = std::fs::remove_dir_all(dir);
+    let views = VIEWS.to_string();
+    let mut args = vec!["capture", "--simulated", "--object", "lab", "--mode", "turntable", "--dark", "4"];
+    args.extend(["--average", "4", "--views", &views, "-o", s(dir)]);
+    args.extend_from_slice(setup);
+    Some(rmvp(&args))
+}
+
+/// A session of the views of `full` numbered `keep`, sharing its files (symbolic links).
+fn subset(full: &Path, keep: &[usize], dir: &Path) -> PathBuf {
+    let _ = std::fs::remove_dir_all(dir);
+    std::fs::create_dir_all(dir).expect("bench folder");
+    let mut manifest = SessionManifest::read(full).expect("session");
+    manifest.views.retain(|v| keep.contains(&v.index));
+    manifest.views_planned = manifest.views.len();
+    manifest.write(dir).expect("manifest");
+    let full = full.canonicalize().expect("session folder");
+    for folder in ["views", "dark", "masks"] {
+        std::os::unix::fs::symlink(full.join(folder), dir.join(folder)).expect("link");
+    }
+    dir.to_path_buf()
+}
+
+/// COLMAP's own time for each step, from the "Elapsed time" line of its logs.
+fn colmap_steps(workspace: &Path) -> Vec<(String, f64)> {
+    ["feature_extractor", "exhaustive_matcher", "mapper"]
+        .iter()
+        .filter_map(|step| {
+            let log = std::fs::read_to_string(workspace.join(format!("{step}.log"))).ok()?;
+            let line = log.lines().rev().find(|l| l.contains("Elapsed time"))?;
+            let minutes: f64 = line.split(':').nth(1)?.split_whitespace().next()?.parse().ok()?;
+            Some((step.to_string(), 60.0 * minutes))
+        })
+        .collect()
+}
+
+fn main() {
+    if !std::env::args().any(|a| a == "--bench") {
+        return; // built by `cargo test --all-targets`: measure only under `cargo bench`
+    }
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench-lab");
+    let (cal, lab, empty) = (root.join("cal"), root.join("lab"), root.join("empty"));
+    println!("lab benchmark: {VIEWS} views at 1224x1024 per session, simulated camera, sessions in {}", root.display());
+    for (dir, setup) in [
+        (&cal, vec!["--setup", "calibration", BOARD[0], BOARD[1]]),
+        (&lab, vec!["--setup", "lab", BOARD[0], BOARD[1]]),
+        (&empty, vec!["--setup", "lab", "--no-object", BOARD[0], BOARD[1]]),
+    ] {
+        if let Some(seconds) = session(dir, &setup) {
+            let name = dir.file_name().expect("named").to_string_lossy();
+            println!("  capture {name:<6} {seconds:7.1} s (rendering, sensor, GenICam streaming, processing, writing)");
+        }
+    }
+    let camera = root.join("camera.json");
+    let out = root.join("out");
+    std::fs::create_dir_all(&out).expect("bench folder");
+    println!("stage times ({VIEWS} views):");
+    let t = rmvp(&["calibrate", s(&cal), "-o", s(&camera), BOARD[0], BOARD[1]]);
+    println!("  calibrate (ChArUco, 24 images)          {t:7.1} s");
+    let t = rmvp(&[
+        "poses",
+        s(&lab),
+        "--method",
+        "charuco",
+        "--camera",
+        s(&camera),
+        "-o",
+        s(&out.join("charuco.json")),
+        BOARD[0],
+        BOARD[1],
+    ]);
+    println!("  poses --method charuco                  {t:7.1} s");
+    let t = rmvp(&["masks", s(&lab), "--method", "grabcut", "--background", s(&empty), "-o", s(&out.join("grabcut"))]);
+    println!("  masks --method grabcut                  {t:7.1} s");
+    let t = rmvp(&["masks", s(&lab), "--method", "difference", "--background", s(&empty), "-o", s(&out.join("masks"))]);
+    println!("  masks --method difference               {t:7.1} s");
+    let t = rmvp(&[
+        "poses",
+        s(&lab),
+        "--method",
+        "colmap",
+        "--camera",
+        s(&camera),
+        "--max-features",
+        "2048",
+        "-o",
+        s(&out.join("colmap.json")),
+    ]);
+    println!("  poses --method colmap                   {t:7.1} s, of which COLMAP's own:");
+    for (step, seconds) in colmap_steps(&lab.join("colmap")) {
+        println!("    colmap {step:<32} {seconds:7.1} s");
+    }
+
+    let truth = SimulatedScene::new(&SimulatorConfig {
+        views: VIEWS,
+        setup: SimulatedSetup::Lab(LabSetup {
+            board: BoardSpec { squares: [10, 8], ..BoardSpec::default() },
+            ..LabSetup::default()
+        }),
+        ..SimulatorConfig::default()
+    })
+    .expect("the simulated lab");
+    let distance = LabSetup::default().distance_mm;
+    println!("pose accuracy against the rendered truth (worst view; centres in % of the camera distance):");
+    println!("  views  method    posed  rotation (deg)  centre (%)   time (s)");
+    // Both rings (views alternate between them), evenly around.
+    for (count, keep) in [
+        (24, (0..24).collect::<Vec<usize>>()),
+        (12, (0..24).filter(|i| i % 4 < 2).collect()),
+        (6, (0..24).filter(|i| i % 8 < 2).collect()),
+    ] {
+        let dir = subset(&lab, &keep, &root.join(format!("lab-{count}")));
+        for method in ["charuco", "colmap"] {
+            let file = out.join(format!("{method}-{count}.json"));
+            let mut args = vec!["poses", s(&dir), "--method", method, "--camera", s(&camera), "-o", s(&file)];
+            args.extend(if method == "charuco" { BOARD.to_vec() } else { vec!["--max-features", "2048"] });
+            let start = Instant::now();
+            let status = Command::new(env!("CARGO_BIN_EXE_rmvp")).args(&args).output().expect("rmvp runs");
+            let seconds = start.elapsed().as_secs_f64();
+            if !status.status.success() {
+                let why = String::from_utf8_lossy(&status.stderr);
+                println!("  {count:>5}  {method:<8}  failed: {}", why.lines().next().unwrap_or(""));
+                continue;
+            }
+            let set = PoseSet::read(&file).expect("poses");
+            let (found, reference): (Vec<Camera>, Vec<Camera>) = set
+                .views
+                .iter()
+                .map(|v| {
+                    let index: usize = v.name.parse().expect("numbered views");
+                    (Camera::try_from(&v.camera).expect("camera"), truth.cameras[index].clone())
+                })
+                .unzip();
+            let errors = pose_errors(&found, &reference, method == "colmap");
+            println!(
+                "  {count:>5}  {method:<8}  {:>5}  {:>14.4}  {:>10.4}  {seconds:>9.1}",
+                format!("{}/{count}", set.views.len()),
+                errors.max_rotation_deg(),
+                100.0 * errors.max_centre_distance() / distance
+            );
+        }
+    }
+}
