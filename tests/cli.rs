@@ -84,13 +84,33 @@ fn simulate_writes_both_layouts_and_raw_frames() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("sim");
     let simulate = |dir: &Path| {
-        let args = ["--res", "64x48", "--spp", "2", "--views", "4", "--rig", "turntable", "--raw", "--seed", "5"];
+        let args = [
+            "--res",
+            "64x48",
+            "--spp",
+            "2",
+            "--views",
+            "4",
+            "--eval-views",
+            "2",
+            "--rig",
+            "turntable",
+            "--raw",
+            "--seed",
+            "5",
+        ];
         ok(&[&["simulate", "-o", s(dir)][..], &args[..]].concat());
     };
     simulate(&out);
     let a = rmvp_dataset::layout::read_scene(&out.join("nersp")).unwrap();
     let b = rmvp_dataset::layout::read_scene(&out.join("rmvp")).unwrap();
-    assert_eq!(a.views.len(), 4);
+    // Four training views on the turntable, two held out elsewhere with ground truth only.
+    let splits: Vec<_> = a.views.iter().map(|v| v.split).collect();
+    assert_eq!(splits, [&[rmvp_dataset::Split::Train; 4][..], &[rmvp_dataset::Split::Eval; 2]].concat());
+    for held_out in &a.views[4..] {
+        assert!(held_out.normals.is_some() && held_out.mask.is_some(), "view {}", held_out.name);
+        assert!(a.views[..4].iter().all(|v| (v.camera.center() - held_out.camera.center()).norm() > 0.1));
+    }
     // What both layouts hold is identical (NeRSP quantizes AoP to 16 bits and has no DoP).
     for (x, y) in a.views.iter().zip(&b.views) {
         assert!(

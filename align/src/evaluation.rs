@@ -2,13 +2,13 @@
 //! with a scene, the normal angular error in each of its ground-truth views, stored as one
 //! record (`rmvp eval --json`, the demo's report, batch results) with per-view error maps.
 
-use crate::normals::{normal_errors, ViewNormalError};
+use crate::normals::{normal_errors, split_mean_deg, ViewNormalError};
 use crate::surface::{surface_metrics, SurfaceMetrics, SurfaceOptions};
 use crate::Result;
 use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::io::png;
 use rmvp_dataset::visualize::gray_ramp;
-use rmvp_dataset::{Mesh, Scene};
+use rmvp_dataset::{Mesh, Scene, Split};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
@@ -41,6 +41,11 @@ pub fn evaluate(pred: &Mesh, gt: &Mesh, scene: Option<&Scene>, options: &Surface
 }
 
 impl Evaluation {
+    /// The mean normal error over the views of `split` (training or held out), degrees.
+    pub fn split_normal_mae_deg(&self, split: Split) -> Option<f64> {
+        split_mean_deg(&self.normal_views, split)
+    }
+
     /// Write each view's normal error map, `DIR/<view>_normal_error.png` (black 0 to white
     /// [`ERROR_MAP_MAX_DEG`]); returns the files.
     pub fn write_error_maps(&self, dir: &Path) -> Result<Vec<PathBuf>> {

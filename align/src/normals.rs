@@ -4,7 +4,7 @@
 
 use crate::{Error, Result};
 use rayon::prelude::*;
-use rmvp_dataset::{Image, Mesh, Scene};
+use rmvp_dataset::{Image, Mesh, Scene, Split};
 use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::{geometry_maps, Object};
 use serde::{Deserialize, Serialize};
@@ -14,6 +14,8 @@ use serde::{Deserialize, Serialize};
 pub struct ViewNormalError {
     /// View name.
     pub view: String,
+    /// Whether the view was a training view or held out.
+    pub split: Split,
     /// Mean angle between predicted and ground-truth normals, degrees.
     pub mae_deg: f64,
     /// Pixels compared.
@@ -61,7 +63,13 @@ pub fn normal_errors(pred: &Mesh, scene: &Scene) -> Result<NormalReport> {
             if pixels == 0 {
                 return Err(Error::NoCoverage { view: view.name.clone() });
             }
-            Ok(ViewNormalError { view: view.name.clone(), mae_deg: sum / pixels as f64, pixels, error_map })
+            Ok(ViewNormalError {
+                view: view.name.clone(),
+                split: view.split,
+                mae_deg: sum / pixels as f64,
+                pixels,
+                error_map,
+            })
         })
         .collect::<Result<_>>()?;
     if views.is_empty() {
@@ -69,4 +77,10 @@ pub fn normal_errors(pred: &Mesh, scene: &Scene) -> Result<NormalReport> {
     }
     let mean_mae_deg = views.iter().map(|v| v.mae_deg).sum::<f64>() / views.len() as f64;
     Ok(NormalReport { views, mean_mae_deg })
+}
+
+/// The mean of the errors of the views of `split` among `views`; `None` when it has none.
+pub fn split_mean_deg(views: &[ViewNormalError], split: Split) -> Option<f64> {
+    let of_split: Vec<f64> = views.iter().filter(|v| v.split == split).map(|v| v.mae_deg).collect();
+    (!of_split.is_empty()).then(|| of_split.iter().sum::<f64>() / of_split.len() as f64)
 }

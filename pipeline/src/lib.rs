@@ -4,6 +4,7 @@
 //! - [`simulate`]: a synthetic polarized capture of a mesh (render, sensor frames, layouts);
 //! - [`ground_truth`]: normal, mask and depth maps of a mesh in every view of a scene;
 //! - [`build`]: datasets from posed, masked capture sessions;
+//! - [`evaluation_set`]: the reconstruction evaluation set (shapes, materials, held-out views);
 //! - [`demo`]: the built-in example end to end: simulate, process raw frames, build the
 //!   dataset, compare with the truth, reconstruct, evaluate ([`demo::DemoReport`]).
 //!
@@ -14,6 +15,7 @@
 pub mod build;
 pub mod demo;
 pub mod error;
+pub mod evaluation_set;
 pub mod ground_truth;
 pub mod simulate;
 

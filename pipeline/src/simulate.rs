@@ -45,6 +45,9 @@ pub struct SimulateOptions {
     pub mesh: Option<PathBuf>,
     /// Number of views (of the rig; a pose list has its own).
     pub views: usize,
+    /// Held-out views rendered after the training views (`Split::Eval`, ground truth only):
+    /// random directions on the sphere, drawn with another seed than the training rig's.
+    pub eval_views: usize,
     /// Where the cameras are.
     pub rig: RigKind,
     /// A JSON pose list replacing the rig ([`rmvp_render::rig::read_poses`]).
@@ -75,6 +78,7 @@ impl Default for SimulateOptions {
             output: PathBuf::from("simulated"),
             mesh: None,
             views: 6,
+            eval_views: 0,
             rig: RigKind::Sphere,
             poses: None,
             size: rmvp_render::rig::SENSOR_SIZE,
@@ -89,6 +93,9 @@ impl Default for SimulateOptions {
         }
     }
 }
+
+/// Mixed into the seed of the held-out views' rig, so that they differ from the training views.
+const EVAL_SEED: u64 = 0x5eed_e7a1;
 
 /// The name of the built-in mesh in records.
 pub const BUILT_IN_MESH: &str = "spot (built-in)";
@@ -127,13 +134,14 @@ pub fn simulate(options: &SimulateOptions) -> Result<Scene> {
     }
     let k = rig_intrinsics(width, height);
     let radius = mesh.radius() as f64;
-    let cameras = match &options.poses {
+    let distance = framing_distance(&k, width, height, radius, FRAMING);
+    let mut cameras = match &options.poses {
         Some(path) => read_poses(path, k, width, height)?,
-        None => {
-            let distance = framing_distance(&k, width, height, radius, FRAMING);
-            options.rig.rig(options.views).cameras(k, width, height, distance, options.seed)
-        }
+        None => options.rig.rig(options.views).cameras(k, width, height, distance, options.seed),
     };
+    let train_views = cameras.len();
+    let eval_seed = options.seed ^ EVAL_SEED;
+    cameras.extend(RigKind::Sphere.rig(options.eval_views).cameras(k, width, height, distance, eval_seed));
     let settings = Settings { spp: options.spp, seed: options.seed };
     let bar = progress_bar(options.progress, cameras.len() as u64, "render");
     bar.set_message(format!("{width}x{height}, {} spp", options.spp));
@@ -170,7 +178,13 @@ pub fn simulate(options: &SimulateOptions) -> Result<Scene> {
             &camera_frame_normals(&render.normals, camera),
             &["N.X", "N.Y", "N.Z"],
         )?;
-        scene.views.push(render.into_view(format!("{i:03}"), Split::Train, camera.clone(), scale));
+        let split = if i < train_views { Split::Train } else { Split::Eval };
+        let mut view = render.into_view(format!("{i:03}"), split, camera.clone(), scale);
+        if split == Split::Eval {
+            // Held out: ground truth (mask, depth, normals) only, as the NeRSP layout keeps it.
+            (view.stokes, view.polarized, view.aop, view.dop, view.preview) = (None, None, None, None, None);
+        }
+        scene.views.push(view);
     }
     scene.normalization = nalgebra::Matrix4::new_scaling(NORMALIZATION_MARGIN * radius);
     scene.mesh = Some(mesh);
@@ -182,6 +196,7 @@ pub fn simulate(options: &SimulateOptions) -> Result<Scene> {
         "eta": match options.interface { Interface::Dielectric(eta) => Some(eta), Interface::Conductor(..) => None },
         "conductor": match options.interface { Interface::Conductor(n, k) => Some([n, k]), Interface::Dielectric(_) => None },
         "spp": options.spp,
+        "eval_views": options.eval_views,
         "seed": options.seed,
         "rig": options.poses.as_ref().map_or_else(|| format!("{:?}", options.rig).to_lowercase(), |p| p.display().to_string()),
         "environment": options.env.as_ref().map_or("built-in".into(), |p| p.display().to_string()),
@@ -215,16 +230,17 @@ fn camera_frame_normals(normals: &Image<f32>, camera: &rmvp_dataset::Camera) -> 
     Image::from_vec(normals.width(), normals.height(), 3, data).expect("size kept")
 }
 
-/// Expose every view's Stokes on the sensor model (exposure chosen so that the brightest
+/// Expose every training view's Stokes on the sensor model (exposure chosen so that the brightest
 /// object pixels reach 80 % of full scale) and write `DIR/<view>.raw` (twice the image size),
 /// `DIR/dark.raw` (a black frame) and `DIR/sensor.json`.
 fn write_raw_frames(scene: &Scene, dir: &Path, seed: u64, progress: bool) -> Result<()> {
     let mut model = SensorModel::default();
     let polarized = scene.views.iter().find_map(|v| v.polarized.as_ref()).expect("rendered views");
     model.exposure = 0.8 * polarized.scale as f32;
-    let bar = progress_bar(progress, scene.views.len() as u64, "raw");
-    for (i, view) in scene.views.iter().enumerate() {
-        let stokes = view.stokes.as_ref().expect("rendered views have Stokes");
+    let train = scene.views.iter().filter(|v| v.split == Split::Train).count();
+    let bar = progress_bar(progress, train as u64, "raw");
+    for (i, view) in scene.views.iter().enumerate().filter(|(_, v)| v.split == Split::Train) {
+        let stokes = view.stokes.as_ref().expect("rendered training views have Stokes");
         model.expose(stokes, seed, i as u32).write(&dir.join(format!("{}.raw", view.name)), RAW_FORMAT)?;
         bar.inc(1);
     }

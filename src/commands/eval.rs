@@ -3,7 +3,7 @@
 use anyhow::Result;
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
-use rmvp_dataset::Mesh;
+use rmvp_dataset::{Mesh, Split};
 use std::path::PathBuf;
 
 /// Arguments of `rmvp eval`.
@@ -68,10 +68,15 @@ pub fn run(args: Args) -> Result<()> {
         surface.fscore, surface.threshold, surface.precision, surface.recall, surface.samples[0], surface.samples[1]
     );
     for v in &evaluation.normal_views {
-        println!("normal MAE    {:>7.3} deg  view {} ({} px)", v.mae_deg, v.view, v.pixels);
+        println!("normal MAE    {:>7.3} deg  view {} ({}, {} px)", v.mae_deg, v.view, v.split, v.pixels);
     }
     if let Some(mae) = evaluation.normal_mae_deg {
         println!("normal_mae_deg {mae:.3}  (mean over {} views)", evaluation.normal_views.len());
+    }
+    for split in [Split::Train, Split::Eval] {
+        if let Some(mae) = evaluation.split_normal_mae_deg(split) {
+            println!("normal MAE    {mae:>7.3} deg  mean over the {split} views");
+        }
     }
     Ok(())
 }

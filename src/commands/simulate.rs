@@ -20,6 +20,10 @@ pub struct Args {
     /// Number of views.
     #[arg(long, default_value_t = SimulateOptions::default().views)]
     views: usize,
+    /// Held-out views (ground truth only, for evaluation): random directions on the sphere,
+    /// drawn with another seed than the training views.
+    #[arg(long, default_value_t = SimulateOptions::default().eval_views)]
+    eval_views: usize,
     /// Camera layout: sparse random views on a sphere, or the lab turntable's two rings.
     #[arg(long, value_enum, default_value_t = SimulateOptions::default().rig)]
     rig: RigKind,
@@ -62,6 +66,7 @@ pub fn run(args: Args) -> Result<()> {
         output: args.output,
         mesh: args.mesh,
         views: args.views,
+        eval_views: args.eval_views,
         rig: args.rig,
         poses: args.poses,
         size: args.res,

@@ -1,0 +1,164 @@
+//! Reconstruction quality on the evaluation set (`rmvp_pipeline::evaluation_set`): each scene
+//! simulated (6 training and 6 held-out views), reconstructed with the default preset and its
+//! two ablations, and evaluated; one Markdown table: scene, minutes (training + outputs),
+//! Chamfer, F-score, normal MAE on the training and on the held-out views.
+//!
+//! `cargo bench --bench quality [-- --scenes bumps,knot --variants full,no-geometric
+//! --res 256x256 --iters N --seed S]` (part of `./run bench` with its defaults). Scenes are
+//! simulated once into `target/tmp/bench-quality/<WxH>/<scene>` and reused; each row is kept
+//! in `results.jsonl` there. The bunny comes from `$RMVP_MESHES` or `../shared/meshes`.
+
+use rmvp_align::{evaluate, SurfaceOptions};
+use rmvp_dataset::layout::read_scene;
+use rmvp_dataset::{Mesh, Split};
+use rmvp_pipeline::evaluation_set::{scene, CaptureOptions, SCENES};
+use rmvp_recon::reconstruct::{reconstruct, Options, MESH};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// One reconstruction of one scene.
+struct Row {
+    scene: String,
+    variant: String,
+    size: String,
+    iterations: u32,
+    train_minutes: f64,
+    output_minutes: f64,
+    chamfer: f64,
+    f_score: f64,
+    normal_mae_train_deg: f64,
+    normal_mae_held_out_deg: f64,
+}
+
+/// What the command line asked for.
+struct Plan {
+    scenes: Vec<String>,
+    variants: Vec<String>,
+    size: (u32, u32),
+    iterations: Option<u32>,
+    seed: u64,
+}
+
+fn plan() -> Plan {
+    let mut plan = Plan {
+        scenes: SCENES.iter().map(|s| s.name.to_string()).collect(),
+        variants: ["full", "no-geometric", "no-photometric"].map(String::from).to_vec(),
+        size: (256, 256),
+        iterations: None,
+        seed: 0,
+    };
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
+    for pair in args.chunks(2) {
+        let value = pair.get(1).unwrap_or_else(|| panic!("{} needs a value", pair[0]));
+        let list = || value.split(',').map(String::from).collect::<Vec<_>>();
+        match pair[0].as_str() {
+            "--scenes" => plan.scenes = list(),
+            "--variants" => plan.variants = list(),
+            "--res" => {
+                let (w, h) = value.split_once('x').expect("--res WxH");
+                plan.size = (w.parse().expect("width"), h.parse().expect("height"));
+            }
+            "--iters" => plan.iterations = Some(value.parse().expect("--iters N")),
+            "--seed" => plan.seed = value.parse().expect("--seed N"),
+            other => panic!("unknown argument {other}"),
+        }
+    }
+    plan
+}
+
+fn options(variant: &str, plan: &Plan) -> Options {
+    let base = Options { iterations: plan.iterations, seed: plan.seed, ..Options::default() };
+    match variant {
+        "full" => base,
+        "no-geometric" => Options { geometric: false, ..base },
+        "no-photometric" => Options { photometric: false, ..base },
+        other => panic!("unknown variant {other} (full, no-geometric, no-photometric)"),
+    }
+}
+
+fn meshes() -> PathBuf {
+    std::env::var_os("RMVP_MESHES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes"))
+}
+
+fn main() {
+    let plan = plan();
+    let (w, h) = plan.size;
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("target/tmp/bench-quality/{w}x{h}"));
+    let capture = CaptureOptions { size: plan.size, meshes: meshes(), ..CaptureOptions::default() };
+    println!("| scene | variant | minutes (train + outputs) | Chamfer | F-score | normal MAE train | held out |");
+    println!("| --- | --- | --- | --- | --- | --- | --- |");
+    let mut rows = Vec::new();
+    for name in &plan.scenes {
+        let entry = scene(name).unwrap_or_else(|| panic!("unknown scene {name}"));
+        let dir = root.join(name);
+        let dataset = dir.join("nersp");
+        if read_scene(&dataset).is_err() {
+            let _ = std::fs::remove_dir_all(&dir);
+            entry.simulate(&dir, &capture).unwrap_or_else(|e| panic!("simulating {name}: {e}"));
+        }
+        let data = read_scene(&dataset).expect("simulated scene");
+        let gt = data.mesh.clone().expect("ground-truth mesh");
+        for variant in &plan.variants {
+            let options = options(variant, &plan);
+            let out = dir.join(format!("{variant}-seed{}", plan.seed));
+            let _ = std::fs::remove_dir_all(&out);
+            let start = Instant::now();
+            let mut trained = 0.0;
+            let trainer = reconstruct(&data, &out, &options, |_, _| trained = start.elapsed().as_secs_f64())
+                .unwrap_or_else(|e| panic!("{name} {variant}: {e}"));
+            let total = start.elapsed().as_secs_f64();
+            let pred = Mesh::read(&out.join(MESH)).expect("reconstructed mesh");
+            let evaluation = evaluate(&pred, &gt, Some(&data), &SurfaceOptions::default()).expect("evaluation");
+            let row = Row {
+                scene: name.clone(),
+                variant: variant.clone(),
+                size: format!("{w}x{h}"),
+                iterations: trainer.config.iterations,
+                train_minutes: trained / 60.0,
+                output_minutes: (total - trained) / 60.0,
+                chamfer: evaluation.surface.chamfer,
+                f_score: evaluation.surface.fscore,
+                normal_mae_train_deg: evaluation.split_normal_mae_deg(Split::Train).unwrap_or(f64::NAN),
+                normal_mae_held_out_deg: evaluation.split_normal_mae_deg(Split::Eval).unwrap_or(f64::NAN),
+            };
+            println!(
+                "| {} | {} | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} |",
+                row.scene,
+                row.variant,
+                row.train_minutes,
+                row.output_minutes,
+                row.chamfer,
+                row.f_score,
+                row.normal_mae_train_deg,
+                row.normal_mae_held_out_deg
+            );
+            let line = serde_json::json!({
+                "scene": row.scene, "variant": row.variant, "size": row.size, "iterations": row.iterations,
+                "seed": plan.seed, "train_minutes": row.train_minutes, "output_minutes": row.output_minutes,
+                "chamfer": row.chamfer, "f_score": row.f_score, "normal_mae_train_deg": row.normal_mae_train_deg,
+                "normal_mae_held_out_deg": row.normal_mae_held_out_deg,
+            });
+            let log = root.join("results.jsonl");
+            let mut text = std::fs::read_to_string(&log).unwrap_or_default();
+            text.push_str(&line.to_string());
+            text.push('\n');
+            std::fs::write(&log, text).expect("results log");
+            rows.push(row);
+        }
+    }
+    for variant in &plan.variants {
+        let of: Vec<&Row> = rows.iter().filter(|r| &r.variant == variant).collect();
+        let mean = |f: fn(&Row) -> f64| of.iter().map(|r| f(r)).sum::<f64>() / of.len() as f64;
+        println!(
+            "| mean | {variant} | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} |",
+            mean(|r| r.train_minutes),
+            mean(|r| r.output_minutes),
+            mean(|r| r.chamfer),
+            mean(|r| r.f_score),
+            mean(|r| r.normal_mae_train_deg),
+            mean(|r| r.normal_mae_held_out_deg)
+        );
+    }
+}
