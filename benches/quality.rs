@@ -83,9 +83,12 @@ fn meshes() -> PathBuf {
 }
 
 fn main() {
+    if !std::env::args().any(|a| a == "--bench") {
+        return; // run by `cargo test --all-targets` (no `--bench`): measure only under `cargo bench`
+    }
     let plan = plan();
     let (w, h) = plan.size;
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("target/tmp/bench-quality/{w}x{h}"));
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("bench-quality/{w}x{h}"));
     let capture = CaptureOptions { size: plan.size, meshes: meshes(), ..CaptureOptions::default() };
     println!("| scene | variant | minutes (train + outputs) | Chamfer | F-score | normal MAE train | held out |");
     println!("| --- | --- | --- | --- | --- | --- | --- |");
@@ -141,6 +144,7 @@ fn main() {
                 "normal_mae_held_out_deg": row.normal_mae_held_out_deg,
             });
             let log = root.join("results.jsonl");
+            std::fs::create_dir_all(&root).expect("bench folder");
             let mut text = std::fs::read_to_string(&log).unwrap_or_default();
             text.push_str(&line.to_string());
             text.push('\n');

@@ -1,5 +1,5 @@
-//! From the simulated camera to posed, masked views, as a lab does it: a calibration session
-//! (the board moved in front of the camera), a 24-view session of the object standing on the
+//! From the simulated camera to posed, masked views, as a lab does it: a 12-view calibration
+//! session (the board moved in front of the camera), a 24-view session of the object standing on the
 //! board, the empty lab at the same turntable positions (background plates); then `rmvp
 //! calibrate`, `rmvp poses` (ChArUco and COLMAP), `rmvp masks`, each against the simulated
 //! truth, and NeRSP on six views with the estimated poses and masks against the same run with
@@ -80,7 +80,8 @@ fn reconstruct(scene: &Scene, truth: &Scene, iterations: u32) -> f64 {
 fn a_lab_session_becomes_posed_masked_views() {
     let tmp = tempfile::tempdir().unwrap();
     let (cal, lab, empty) = (tmp.path().join("cal"), tmp.path().join("lab"), tmp.path().join("empty"));
-    capture(&cal, 24, &["--setup", "calibration", BOARD[0], BOARD[1]]);
+    // Twelve board poses calibrate within the limits (the benchmark calibrates on 24).
+    capture(&cal, 12, &["--setup", "calibration", BOARD[0], BOARD[1]]);
     capture(&lab, 24, &["--setup", "lab", BOARD[0], BOARD[1]]);
     capture(&empty, 24, &["--setup", "lab", "--no-object", BOARD[0], BOARD[1]]);
     let truth = SimulatedScene::new(&SimulatorConfig {
