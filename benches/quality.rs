@@ -13,6 +13,7 @@ use rmvp_dataset::layout::read_scene;
 use rmvp_dataset::{Mesh, Split};
 use rmvp_pipeline::evaluation_set::{scene, CaptureOptions, SCENES};
 use rmvp_recon::reconstruct::{reconstruct, Options, MESH};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -92,6 +93,9 @@ fn main() {
     let capture = CaptureOptions { size: plan.size, meshes: meshes(), ..CaptureOptions::default() };
     println!("| scene | variant | minutes (train + outputs) | Chamfer | F-score | normal MAE train | held out |");
     println!("| --- | --- | --- | --- | --- | --- | --- |");
+    std::fs::create_dir_all(&root).expect("bench folder");
+    let log = root.join("results.jsonl");
+    let mut results = std::fs::OpenOptions::new().create(true).append(true).open(&log).expect("results log");
     let mut rows = Vec::new();
     for name in &plan.scenes {
         let entry = scene(name).unwrap_or_else(|| panic!("unknown scene {name}"));
@@ -143,12 +147,7 @@ fn main() {
                 "chamfer": row.chamfer, "f_score": row.f_score, "normal_mae_train_deg": row.normal_mae_train_deg,
                 "normal_mae_held_out_deg": row.normal_mae_held_out_deg,
             });
-            let log = root.join("results.jsonl");
-            std::fs::create_dir_all(&root).expect("bench folder");
-            let mut text = std::fs::read_to_string(&log).unwrap_or_default();
-            text.push_str(&line.to_string());
-            text.push('\n');
-            std::fs::write(&log, text).expect("results log");
+            writeln!(results, "{line}").expect("results log");
             rows.push(row);
         }
     }

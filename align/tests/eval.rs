@@ -1,9 +1,10 @@
 //! Evaluation against known answers: identical meshes, concentric spheres, a mesh against its
 //! own normal maps, and the fixtures' ground-truth normals.
 
+use rmvp_align::normals::split_mean_deg;
 use rmvp_align::{normal_errors, surface_metrics, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
-use rmvp_dataset::Mesh;
+use rmvp_dataset::{Mesh, Split};
 use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::shapes::icosphere;
 use rmvp_render::{geometry_maps, Object};
@@ -84,6 +85,14 @@ fn a_mesh_has_no_normal_error_against_its_own_normal_maps() {
     };
     let report = normal_errors(&turned, &scene).unwrap();
     assert!(report.mean_mae_deg > 5.0, "a 10-degree turn gives {}", report.mean_mae_deg);
+    // Each view keeps its split; a split's mean is over its own views (the fixture holds two
+    // views out).
+    let splits: Vec<Split> = report.views.iter().map(|v| v.split).collect();
+    assert_eq!(splits, scene.views.iter().map(|v| v.split).collect::<Vec<_>>());
+    let held_out: Vec<f64> = report.views.iter().filter(|v| v.split == Split::Eval).map(|v| v.mae_deg).collect();
+    assert_eq!(held_out.len(), 2);
+    assert_eq!(split_mean_deg(&report.views, Split::Eval), Some((held_out[0] + held_out[1]) / 2.0));
+    assert_ne!(split_mean_deg(&report.views, Split::Train), split_mean_deg(&report.views, Split::Eval));
 }
 
 #[test]
