@@ -1,25 +1,73 @@
-//! Datasets from posed, masked capture sessions (`rmvp dataset build`): every view with a pose
-//! and a mask, lens distortion removed, a sparse training split spread over the viewing
-//! directions, the normalisation from the visual hull, written in the NeRSP layout (what the
-//! official loader reads) and ours.
+//! Datasets from posed, masked capture sessions (`rmvp dataset build`), in stages that a build
+//! can resume:
+//!
+//! 1. `views`: every view with a pose and a mask, lens distortion removed, a sparse training
+//!    split spread over the viewing directions, the normalisation from the visual hull;
+//! 2. `reference` (with a scan): a reference shape reconstructed from all views (the dense
+//!    preset of `rmvp recon`; resumes from its checkpoint);
+//! 3. `scan`: the laser scan (millimetres, any pose) aligned onto the reference by ICP with
+//!    scale, its units checked where the world is metric;
+//! 4. `ground-truth`: the aligned scan as the dataset's mesh; per view, normals and depth ray
+//!    cast from it (the ground-truth silhouette is where the depth is positive);
+//! 5. `environment` (with a panorama): the panorama turned into the world frame
+//!    ([`crate::panorama`]);
+//! 6. `layouts`: the NeRSP layout (what the official loader reads) and ours, each written
+//!    beside its final place and moved there whole.
+//!
+//! `build.json` (a [`BuildRecord`]) is rewritten after every stage and says `complete` last.
 //!
 //! ```text
-//! DATASET/nersp/    the NeRSP layout (training views in cameras.npz, every view in gt/)
-//! DATASET/rmvp/     our layout
+//! DATASET/build.json        what was built from what, stage times, residuals
+//! DATASET/nersp/            the NeRSP layout (training views in cameras.npz, every view in gt/)
+//! DATASET/rmvp/             our layout
+//! DATASET/work/reference/   the reference reconstruction (checkpoint, mesh.ply)
+//! DATASET/work/scan/        alignment.json, aligned.ply (the scan in the world frame)
 //! ```
 
+use crate::panorama::{read_panorama, to_world, world_to_panorama};
 use crate::{Error, Result};
-use nalgebra::Vector3;
+#[cfg(test)]
+use nalgebra::Rotation3;
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+use rmvp_align::icp::{align, Alignment, ALIGNED_MESH, ALIGNMENT_FILE};
+use rmvp_align::IcpOptions;
+use rmvp_calib::board::board_to_y_up;
+use rmvp_calib::intrinsics::CameraCalibration;
 use rmvp_calib::masks::MASKS_FOLDER;
+use rmvp_calib::poses::charuco::BOARD_WORLD;
 use rmvp_calib::poses::{PoseSet, POSES_FILE};
 use rmvp_calib::scene::posed_scene;
 use rmvp_calib::undistort::undistort_view;
+use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::layout::{write_scene, Layout};
-use rmvp_dataset::{Camera, Scene};
+use rmvp_dataset::progress::progress_bar;
+use rmvp_dataset::session::SessionManifest;
+use rmvp_dataset::{Camera, Image, Mesh, Scene, Split};
+use rmvp_recon::model::Preset;
+use rmvp_recon::reconstruct::{reconstruct, Options as ReconOptions, MESH};
+use rmvp_render::pbrdf::{Interface, Lobes};
+use rmvp_render::{geometry_maps, Object};
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The record of a build, in the dataset folder.
+pub const BUILD_FILE: &str = "build.json";
+/// The `format` of [`BuildRecord`].
+pub const BUILD_FORMAT: &str = "rmvp-build";
+/// The reference reconstruction's folder.
+pub const REFERENCE_FOLDER: &str = "work/reference";
+/// The scan alignment's folder (`alignment.json`, `aligned.ply`).
+pub const SCAN_FOLDER: &str = "work/scan";
+/// A scan whose ICP scale is this far (relative) from its stated units' is refused.
+pub const SCAN_SCALE_TOLERANCE: f64 = 0.05;
+/// A scan whose median distance to the reference exceeds this share of the reference's size
+/// (bounding-box diagonal) after alignment is refused.
+pub const SCAN_MAX_MEDIAN_DISTANCE: f64 = 0.01;
 
 /// Which views train.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum TrainViews {
     /// This many, spread over the viewing directions (farthest-point sampling).
     Count(usize),
@@ -42,6 +90,75 @@ impl std::str::FromStr for TrainViews {
     }
 }
 
+/// A unit of length a scan may be stored in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum LengthUnit {
+    /// Millimetres (Creaform and most scanners).
+    Mm,
+    /// Centimetres.
+    Cm,
+    /// Metres.
+    M,
+    /// Inches.
+    In,
+}
+
+impl LengthUnit {
+    /// The unit's symbol.
+    pub fn name(self) -> &'static str {
+        match self {
+            LengthUnit::Mm => "mm",
+            LengthUnit::Cm => "cm",
+            LengthUnit::M => "m",
+            LengthUnit::In => "in",
+        }
+    }
+
+    /// One unit in millimetres.
+    pub fn millimetres(self) -> f64 {
+        match self {
+            LengthUnit::Mm => 1.0,
+            LengthUnit::Cm => 10.0,
+            LengthUnit::M => 1000.0,
+            LengthUnit::In => 25.4,
+        }
+    }
+}
+
+impl std::str::FromStr for LengthUnit {
+    type Err = String;
+
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        match text {
+            "mm" => Ok(LengthUnit::Mm),
+            "cm" => Ok(LengthUnit::Cm),
+            "m" => Ok(LengthUnit::M),
+            "in" => Ok(LengthUnit::In),
+            other => Err(format!("unknown unit {other:?} (mm, cm, m, in)")),
+        }
+    }
+}
+
+/// A laser scan to align.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScanInput {
+    /// PLY, STL or OBJ, any pose.
+    pub path: PathBuf,
+    /// Its unit of length.
+    pub units: LengthUnit,
+}
+
+/// A panorama to turn into the environment map.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PanoramaInput {
+    /// EXR, HDR, PNG or JPEG, equirectangular.
+    pub path: PathBuf,
+    /// Turn about the up axis after the world's own rotation (the board frame's z up to the
+    /// panorama's +Y up), degrees.
+    pub yaw_deg: f64,
+}
+
 /// What to build; [`BuildOptions::default`] holds `rmvp dataset build`'s defaults.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BuildOptions {
@@ -51,11 +168,187 @@ pub struct BuildOptions {
     pub output: PathBuf,
     /// The training split (NeRSP: 6 sparse views).
     pub train: TrainViews,
+    /// The camera calibration the poses used (`camera.json`), for the record.
+    pub calibration: Option<PathBuf>,
+    /// A laser scan: ground truth in the dataset.
+    pub scan: Option<ScanInput>,
+    /// A panorama: the environment map.
+    pub panorama: Option<PanoramaInput>,
+    /// The reference reconstruction from all views (with a scan).
+    pub reference: ReconOptions,
+    /// Continue an unfinished build in `output`.
+    pub resume: bool,
+    /// Show progress bars.
+    pub progress: bool,
 }
 
 impl Default for BuildOptions {
     fn default() -> Self {
-        Self { session: PathBuf::from("session"), output: PathBuf::from("dataset"), train: TrainViews::Count(6) }
+        Self {
+            session: PathBuf::from("session"),
+            output: PathBuf::from("dataset"),
+            train: TrainViews::Count(6),
+            calibration: None,
+            scan: None,
+            panorama: None,
+            reference: ReconOptions {
+                preset: Preset::Dense,
+                mesh_resolution: 384,
+                view_outputs: false,
+                checkpoint_every: 250,
+                ..ReconOptions::default()
+            },
+            resume: false,
+            progress: true,
+        }
+    }
+}
+
+/// What a build was asked for: a resumed build must be asked the same.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BuildInputs {
+    /// The session folder.
+    pub session: PathBuf,
+    /// The split asked for.
+    pub train: TrainViews,
+    /// The scan.
+    pub scan: Option<ScanInput>,
+    /// The panorama.
+    pub panorama: Option<PanoramaInput>,
+    /// The reference reconstruction's preset.
+    pub reference_preset: Preset,
+    /// Its iterations.
+    pub reference_iterations: u32,
+}
+
+/// How the views were posed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PoseSummary {
+    /// Method (`charuco`, `colmap`, ...).
+    pub method: serde_json::Value,
+    /// The world frame.
+    pub world: String,
+    /// Mean RMS reprojection error of the posing points over the views, pixels.
+    pub residual_px_mean: Option<f64>,
+    /// Largest of them.
+    pub residual_px_max: Option<f64>,
+    /// Views the method could not pose.
+    pub failed: Vec<String>,
+}
+
+/// The camera calibration's figures.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationSummary {
+    /// RMS reprojection error over all corners, pixels.
+    pub rms_px: f64,
+    /// Standard deviations of fx, fy, cx, cy, pixels.
+    pub k_std_px: [f64; 4],
+    /// Board images used.
+    pub images: usize,
+}
+
+/// The reference reconstruction.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceSummary {
+    /// Preset.
+    pub preset: Preset,
+    /// Iterations.
+    pub iterations: u32,
+    /// Views it trained on (all).
+    pub views: usize,
+    /// Marching grid cells per axis.
+    pub mesh_resolution: usize,
+}
+
+/// The scan and its alignment.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScanSummary {
+    /// The scan file.
+    pub file: PathBuf,
+    /// Its units.
+    pub units: LengthUnit,
+    /// Scan to world (`x_world = s R x_scan + t`), RMS and median residuals in world units.
+    pub alignment: Alignment,
+    /// The scale its units give in a millimetre world (`None`: the world's scale is arbitrary
+    /// and the units were not checked).
+    pub expected_scale: Option<f64>,
+    /// Median scan-to-reference distance over the reference's bounding-box diagonal.
+    pub median_distance_relative: f64,
+    /// Captured masks against the scan's silhouettes: mean IoU over the views.
+    pub mask_iou_mean: f64,
+    /// The lowest IoU and its view.
+    pub mask_iou_min: (f64, String),
+}
+
+/// The environment map.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EnvironmentSummary {
+    /// The panorama file.
+    pub file: PathBuf,
+    /// Map size.
+    pub size: [usize; 2],
+    /// World to panorama frame, rows.
+    pub world_to_panorama: [[f64; 3]; 3],
+    /// The mapping of `env.exr`.
+    pub convention: String,
+}
+
+/// One finished stage.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StageRecord {
+    /// `views`, `reference`, `scan`, `ground-truth`, `environment`, `layouts`.
+    pub name: String,
+    /// Wall time, seconds (of the run that finished it).
+    pub seconds: f64,
+}
+
+/// `build.json`: what a dataset was built from, how, and which stages are done.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BuildRecord {
+    /// [`BUILD_FORMAT`].
+    pub format: String,
+    /// What was asked.
+    pub inputs: BuildInputs,
+    /// The object's name (the session's).
+    pub object: String,
+    /// The camera (identity, pixel format, size) as the session recorded it.
+    pub camera: serde_json::Value,
+    /// Acquisition settings as the session recorded them.
+    pub settings: serde_json::Value,
+    /// Views in the dataset.
+    pub views: Vec<String>,
+    /// The training split.
+    pub train: Vec<String>,
+    /// Image size.
+    pub size: [u32; 2],
+    /// Poses.
+    pub poses: PoseSummary,
+    /// Calibration.
+    pub calibration: Option<CalibrationSummary>,
+    /// Reference reconstruction.
+    pub reference: Option<ReferenceSummary>,
+    /// Scan.
+    pub scan: Option<ScanSummary>,
+    /// Environment map.
+    pub environment: Option<EnvironmentSummary>,
+    /// Finished stages, in order.
+    pub stages: Vec<StageRecord>,
+    /// All stages done and both layouts in place.
+    pub complete: bool,
+}
+
+impl BuildRecord {
+    /// Read `DATASET/build.json`.
+    pub fn read(dataset: &Path) -> Result<Self> {
+        Ok(read_json(&dataset.join(BUILD_FILE), "a dataset build record")?)
+    }
+
+    fn write(&self, dataset: &Path) -> Result<()> {
+        Ok(write_json(&dataset.join(BUILD_FILE), self)?)
+    }
+
+    fn done(&self, stage: &str) -> bool {
+        self.stages.iter().any(|s| s.name == stage)
     }
 }
 
@@ -87,9 +380,57 @@ pub fn spread_views(cameras: &[(String, Camera)], centre: &Vector3<f64>, count: 
     chosen.into_iter().map(|i| cameras[i].0.clone()).collect()
 }
 
-/// Build the dataset of `options` and return its scene.
-pub fn build_dataset(options: &BuildOptions) -> Result<Scene> {
+/// Whether poses put the world in millimetres (a board's frame, or a rig calibrated on one).
+fn world_in_millimetres(poses: &PoseSet) -> bool {
+    poses.world.contains(BOARD_WORLD)
+}
+
+/// The record to continue, or a new one; refuses a folder that holds something else.
+fn start(options: &BuildOptions, inputs: &BuildInputs) -> Result<Option<BuildRecord>> {
+    let out = &options.output;
+    let folder = |why: String| Error::Folder { path: out.clone(), why };
+    if out.join(BUILD_FILE).is_file() {
+        let record = BuildRecord::read(out)?;
+        if !options.resume {
+            let done: Vec<&str> = record.stages.iter().map(|s| s.name.as_str()).collect();
+            return Err(folder(if record.complete {
+                "a complete dataset is here already; remove it or build into another folder".into()
+            } else {
+                format!("an unfinished build is here (done: {}); --resume continues it", done.join(", "))
+            }));
+        }
+        if &record.inputs != inputs {
+            return Err(folder(format!(
+                "was built from other inputs ({}); remove it to start again",
+                serde_json::to_string(&record.inputs).expect("plain")
+            )));
+        }
+        return Ok(Some(record));
+    }
+    if out.read_dir().is_ok_and(|mut d| d.next().is_some()) {
+        return Err(folder(format!("not empty and has no {BUILD_FILE}: not a dataset build")));
+    }
+    Ok(None)
+}
+
+/// Intersection over union of two masks (> 127 is inside).
+pub fn mask_iou(a: &Image<u8>, b: &Image<u8>) -> f64 {
+    let (mut inter, mut union) = (0usize, 0usize);
+    for (x, y) in a.data().iter().zip(b.data()) {
+        inter += usize::from(*x > 127 && *y > 127);
+        union += usize::from(*x > 127 || *y > 127);
+    }
+    if union == 0 {
+        1.0
+    } else {
+        inter as f64 / union as f64
+    }
+}
+
+/// Build the dataset of `options` (or continue it) and return its record.
+pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
     let session = &options.session;
+    let out = &options.output;
     let poses_file = session.join(POSES_FILE);
     if !poses_file.is_file() {
         return Err(Error::Unprepared { session: session.clone(), missing: "camera poses (poses.json)" });
@@ -97,6 +438,33 @@ pub fn build_dataset(options: &BuildOptions) -> Result<Scene> {
     if !session.join(MASKS_FOLDER).is_dir() {
         return Err(Error::Unprepared { session: session.clone(), missing: "object masks (masks/)" });
     }
+    let reference_iterations = options.reference.iterations.unwrap_or(options.reference.preset.default_iterations());
+    let inputs = BuildInputs {
+        session: session.clone(),
+        train: options.train.clone(),
+        scan: options.scan.clone(),
+        panorama: options.panorama.clone(),
+        reference_preset: options.reference.preset,
+        reference_iterations,
+    };
+    let previous = start(options, &inputs)?;
+    if let Some(record) = &previous {
+        if record.complete {
+            return Ok(record.clone());
+        }
+    }
+    // Inputs are checked before any work: a wrong panorama fails now, not after an hour.
+    let panorama = options.panorama.as_ref().map(|p| read_panorama(&p.path)).transpose()?;
+    if let Some(scan) = &options.scan {
+        if !scan.path.is_file() {
+            return Err(Error::Scan { path: scan.path.clone(), why: "no such file".into() });
+        }
+    }
+    std::fs::create_dir_all(out).map_err(|e| rmvp_dataset::Error::io(out, e))?;
+
+    // 1. Views.
+    let clock = Instant::now();
+    let manifest = SessionManifest::read(session)?;
     let poses = PoseSet::read(&poses_file)?;
     let cameras: Vec<(String, Camera)> =
         poses.views.iter().filter_map(|v| Some((v.name.clone(), Camera::try_from(&v.camera).ok()?))).collect();
@@ -107,17 +475,277 @@ pub fn build_dataset(options: &BuildOptions) -> Result<Scene> {
         TrainViews::Count(n) => spread_views(&cameras, &centre, *n),
         TrainViews::Names(names) => names.clone(),
     };
-    let mut scene = posed_scene(session, &poses, None, &train)?;
-    scene.views = scene.views.iter().map(undistort_view).collect();
-    // Training views first, as the layouts number them.
-    scene.views.sort_by_key(|v| v.split != rmvp_dataset::Split::Train);
-    for layout in [Layout::Nersp, Layout::Rmvp] {
-        write_scene(&scene, &options.output.join(layout.name()), layout)?;
+    let mut scene = all;
+    for view in &mut scene.views {
+        view.split = if train.contains(&view.name) { Split::Train } else { Split::Eval };
     }
-    Ok(scene)
+    let missing: Vec<&String> = train.iter().filter(|t| scene.view(t).is_none()).collect();
+    if !missing.is_empty() {
+        return Err(Error::Folder {
+            path: session.clone(),
+            why: format!("training views {missing:?} are not posed and masked views of the session"),
+        });
+    }
+    scene.views = scene.views.par_iter().map(undistort_view).collect();
+    // Training views first, as the layouts number them.
+    scene.views.sort_by_key(|v| v.split != Split::Train);
+    let residuals: Vec<f64> = poses.views.iter().filter_map(|v| v.residual_px).collect();
+    let calibration = options
+        .calibration
+        .as_ref()
+        .map(|path| -> Result<CalibrationSummary> {
+            let c = CameraCalibration::read(path)?;
+            Ok(CalibrationSummary { rms_px: c.rms_px, k_std_px: c.k_std_px, images: c.images.len() })
+        })
+        .transpose()?;
+    let first = &scene.views[0].camera;
+    let mut record = previous.unwrap_or_else(|| BuildRecord {
+        format: BUILD_FORMAT.into(),
+        inputs: inputs.clone(),
+        object: manifest.object.clone(),
+        camera: serde_json::to_value(&manifest.camera).expect("plain"),
+        settings: serde_json::to_value(&manifest.settings).expect("plain"),
+        views: Vec::new(),
+        train: Vec::new(),
+        size: [first.width, first.height],
+        poses: PoseSummary {
+            method: serde_json::to_value(poses.method).expect("plain"),
+            world: poses.world.clone(),
+            residual_px_mean: (!residuals.is_empty()).then(|| residuals.iter().sum::<f64>() / residuals.len() as f64),
+            residual_px_max: residuals.iter().copied().reduce(f64::max),
+            failed: poses.failed.iter().map(|f| f.name.clone()).collect(),
+        },
+        calibration,
+        reference: None,
+        scan: None,
+        environment: None,
+        stages: Vec::new(),
+        complete: false,
+    });
+    record.views = scene.views.iter().map(|v| v.name.clone()).collect();
+    record.train = train.clone();
+    finish_stage(&mut record, out, "views", clock)?;
+
+    if let Some(scan) = &options.scan {
+        // 2. The reference shape from all views.
+        let reference_dir = out.join(REFERENCE_FOLDER);
+        if !record.done("reference") {
+            let clock = Instant::now();
+            let mut everything = scene.clone();
+            for view in &mut everything.views {
+                view.split = Split::Train;
+            }
+            let recon = ReconOptions { resume: options.resume, ..options.reference.clone() };
+            let bar = progress_bar(options.progress, reference_iterations as u64, "reference");
+            reconstruct(&everything, &reference_dir, &recon, |report, _| {
+                bar.set_position(report.iteration as u64 + 1)
+            })?;
+            bar.finish();
+            record.reference = Some(ReferenceSummary {
+                preset: recon.preset,
+                iterations: reference_iterations,
+                views: everything.views.len(),
+                mesh_resolution: recon.mesh_resolution,
+            });
+            finish_stage(&mut record, out, "reference", clock)?;
+        }
+        // 3. The scan onto it.
+        let scan_dir = out.join(SCAN_FOLDER);
+        if !record.done("scan") {
+            let clock = Instant::now();
+            let reference = Mesh::read(&reference_dir.join(MESH))?;
+            let summary = align_scan(scan, &reference, world_in_millimetres(&poses), &scan_dir)?;
+            record.scan = Some(summary);
+            finish_stage(&mut record, out, "scan", clock)?;
+        }
+        // 4. Ground truth from the aligned scan (ray casting: seconds, done again on resume).
+        let clock = Instant::now();
+        let aligned = Mesh::read(&scan_dir.join(ALIGNED_MESH))?;
+        let ious = ground_truth(&mut scene, &aligned)?;
+        let summary = record.scan.as_mut().expect("scan stage done");
+        summary.mask_iou_mean = ious.iter().map(|(iou, _)| iou).sum::<f64>() / ious.len().max(1) as f64;
+        summary.mask_iou_min = ious.iter().cloned().min_by(|a, b| a.0.total_cmp(&b.0)).unwrap_or((1.0, String::new()));
+        scene.metadata.insert("scan_alignment".into(), serde_json::to_value(&*summary).expect("plain"));
+        if !record.done("ground-truth") {
+            finish_stage(&mut record, out, "ground-truth", clock)?;
+        }
+    }
+
+    // 5. The environment map.
+    if let (Some(input), Some(panorama)) = (&options.panorama, &panorama) {
+        let clock = Instant::now();
+        let base = if world_in_millimetres(&poses) { board_to_y_up() } else { Matrix3::identity() };
+        let rotation = world_to_panorama(&base, input.yaw_deg);
+        scene.env_map = Some(to_world(panorama, &rotation)?);
+        let summary = EnvironmentSummary {
+            file: input.path.clone(),
+            size: [panorama.width(), panorama.height()],
+            world_to_panorama: [0, 1, 2].map(|r| [0, 1, 2].map(|c| rotation[(r, c)])),
+            convention: ENV_CONVENTION.into(),
+        };
+        scene.metadata.insert("environment".into(), serde_json::to_value(&summary).expect("plain"));
+        record.environment = Some(summary);
+        if !record.done("environment") {
+            finish_stage(&mut record, out, "environment", clock)?;
+        }
+    }
+
+    // 6. Both layouts, each written aside and moved into place whole.
+    let clock = Instant::now();
+    scene.metadata.insert("train".into(), serde_json::to_value(&train).expect("plain"));
+    for layout in [Layout::Nersp, Layout::Rmvp] {
+        let (final_dir, partial) = (out.join(layout.name()), out.join(format!("{}.partial", layout.name())));
+        for dir in [&final_dir, &partial] {
+            if dir.exists() {
+                std::fs::remove_dir_all(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
+            }
+        }
+        write_scene(&scene, &partial, layout)?;
+        std::fs::rename(&partial, &final_dir).map_err(|e| rmvp_dataset::Error::io(&final_dir, e))?;
+    }
+    finish_stage(&mut record, out, "layouts", clock)?;
+    record.complete = true;
+    record.write(out)?;
+    Ok(record)
+}
+
+/// The mapping of a dataset's environment map (see [`crate::panorama`]).
+pub const ENV_CONVENTION: &str = "lat-long, linear RGB; texel (i, j) of W x H holds the radiance arriving from the \
+world direction (sin t sin p, cos t, -sin t cos p), p = 2 pi (i + 0.5) / W, t = pi (j + 0.5) / H (Mitsuba 3's \
+envmap mapping of world directions)";
+
+fn finish_stage(record: &mut BuildRecord, out: &Path, name: &str, clock: Instant) -> Result<()> {
+    let seconds = clock.elapsed().as_secs_f64();
+    match record.stages.iter_mut().find(|s| s.name == name) {
+        Some(stage) => stage.seconds = seconds,
+        None => record.stages.push(StageRecord { name: name.into(), seconds }),
+    }
+    record.write(out)
+}
+
+/// Align `scan` onto `reference` (world frame) by ICP with scale, check it (its units where
+/// the world is in millimetres, `world_mm`; its fit always), and write `dir/alignment.json` and
+/// `dir/aligned.ply`. The masks' IoU fields are left for the ground-truth stage.
+pub fn align_scan(scan: &ScanInput, reference: &Mesh, world_mm: bool, dir: &Path) -> Result<ScanSummary> {
+    let refuse = |why: String| Error::Scan { path: scan.path.clone(), why };
+    let mesh = Mesh::read(&scan.path)?;
+    let alignment = align(&mesh, reference, &IcpOptions::default())?;
+    let (lo, hi) = reference.bounds().ok_or_else(|| refuse("the reference reconstruction is empty".into()))?;
+    let size = Vector3::from(hi).cast::<f64>().metric_distance(&Vector3::from(lo).cast::<f64>());
+    let relative = alignment.median_distance / size;
+    if relative > SCAN_MAX_MEDIAN_DISTANCE {
+        return Err(refuse(format!(
+            "does not fit the reference shape: after alignment its points lie {:.4} (median, {:.2} % of the \
+             object's size) from it, {:.0} % within reach; another object, or a damaged scan",
+            alignment.median_distance,
+            100.0 * relative,
+            100.0 * alignment.inlier_ratio
+        )));
+    }
+    let expected_scale = world_mm.then(|| scan.units.millimetres());
+    if let Some(expected) = expected_scale {
+        let ratio = alignment.transform.s / expected;
+        if (ratio - 1.0).abs() > SCAN_SCALE_TOLERANCE {
+            return Err(refuse(format!(
+                "aligning it needs a scale of {:.4}, where {} in this millimetre world give {expected}: \
+                 wrong units? (--scan-units mm|cm|m|in)",
+                alignment.transform.s,
+                scan.units.name()
+            )));
+        }
+    }
+    std::fs::create_dir_all(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
+    alignment.transform.apply_to_mesh(&mesh).write(&dir.join(ALIGNED_MESH))?;
+    alignment.write(&dir.join(ALIGNMENT_FILE))?;
+    Ok(ScanSummary {
+        file: scan.path.clone(),
+        units: scan.units,
+        alignment,
+        expected_scale,
+        median_distance_relative: relative,
+        mask_iou_mean: 0.0,
+        mask_iou_min: (0.0, String::new()),
+    })
+}
+
+/// Normals and depth of `mesh` in every view of `scene`, the mesh as the scene's; returns each
+/// view's IoU of its captured mask with the mesh's silhouette.
+fn ground_truth(scene: &mut Scene, mesh: &Mesh) -> Result<Vec<(f64, String)>> {
+    let object = Object::new(mesh, Interface::Dielectric(1.5), Lobes::Plastic)?;
+    let ious = scene
+        .views
+        .iter_mut()
+        .map(|view| {
+            let maps = geometry_maps(&object, &view.camera);
+            let iou = view.mask.as_ref().map_or(0.0, |m| mask_iou(m, &maps.mask));
+            view.normals = Some(maps.normals);
+            view.depth = Some(maps.depth);
+            (iou, view.name.clone())
+        })
+        .collect();
+    scene.mesh = Some(mesh.clone());
+    Ok(ious)
 }
 
 /// The folder of a built dataset in `layout`.
 pub fn layout_folder(dataset: &Path, layout: Layout) -> PathBuf {
     dataset.join(layout.name())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rmvp_align::Similarity;
+    use rmvp_render::shapes::torus_knot;
+
+    /// `mesh` moved by a rotation about (1, 2, 3), a translation and `scale`.
+    fn moved(mesh: &Mesh, scale: f64) -> Mesh {
+        let r = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0)), 2.0);
+        Similarity { r: r.into_inner(), t: Vector3::new(30.0, -12.0, 7.0) * scale, s: scale }.apply_to_mesh(mesh)
+    }
+
+    fn write_scan(dir: &Path, mesh: &Mesh) -> PathBuf {
+        let path = dir.join("scan.ply");
+        mesh.write(&path).unwrap();
+        path
+    }
+
+    #[test]
+    fn scans_are_aligned_in_their_units_and_refused_in_others_or_when_they_do_not_fit() {
+        let dir = tempfile::tempdir().unwrap();
+        // The reference in a millimetre world: the spot 70 mm in radius.
+        let reference = Similarity { r: Matrix3::identity(), t: Vector3::zeros(), s: 70.0 }
+            .apply_to_mesh(&rmvp_render::default_mesh());
+        // A scan in metres, elsewhere and turned.
+        let metres = write_scan(dir.path(), &moved(&reference, 0.001));
+        let scan = ScanInput { path: metres.clone(), units: LengthUnit::M };
+        let summary = align_scan(&scan, &reference, true, &dir.path().join("ok")).unwrap();
+        assert!((summary.alignment.transform.s / 1000.0 - 1.0).abs() < 1e-3, "{:?}", summary.alignment);
+        // Point-to-point distance to a sampled target: its spacing, about 0.1 % of the size.
+        assert!(summary.median_distance_relative < 2e-3, "{}", summary.median_distance_relative);
+        assert!(dir.path().join("ok").join(ALIGNED_MESH).is_file());
+        // The same file said to be in millimetres: refused, naming it and the scale.
+        let wrong = ScanInput { path: metres, units: LengthUnit::Mm };
+        let err = align_scan(&wrong, &reference, true, &dir.path().join("wrong")).unwrap_err();
+        assert!(matches!(err, Error::Scan { .. }) && err.to_string().contains("scan.ply"), "{err}");
+        assert!(err.to_string().contains("wrong units"), "{err}");
+        assert!(!dir.path().join("wrong").exists());
+        // In a world of arbitrary scale the units are not checked.
+        assert!(align_scan(&wrong, &reference, false, &dir.path().join("free")).is_ok());
+        // Another object: refused for its distance.
+        let knot = Similarity { r: Matrix3::identity(), t: Vector3::zeros(), s: 70.0 }
+            .apply_to_mesh(&torus_knot(2, 3, 0.3, 120, 16));
+        let other = ScanInput { path: write_scan(dir.path(), &knot), units: LengthUnit::Mm };
+        let err = align_scan(&other, &reference, true, &dir.path().join("other")).unwrap_err();
+        assert!(err.to_string().contains("does not fit"), "{err}");
+    }
+
+    #[test]
+    fn split_and_units_parse_as_the_command_line_gives_them() {
+        assert_eq!("6".parse::<TrainViews>(), Ok(TrainViews::Count(6)));
+        assert_eq!("000,007".parse::<TrainViews>(), Ok(TrainViews::Names(vec!["000".into(), "007".into()])));
+        assert!("0".parse::<TrainViews>().is_err());
+        assert_eq!("in".parse::<LengthUnit>().map(LengthUnit::millimetres), Ok(25.4));
+        assert!("ft".parse::<LengthUnit>().is_err());
+    }
 }

@@ -59,4 +59,36 @@ pub enum Error {
     /// A simulated capture with nothing to write.
     #[error("no scene layout to write")]
     NoLayout,
+    /// A panorama that cannot be an environment map.
+    #[error("panorama {}: {why}", path.display())]
+    Panorama {
+        /// The file.
+        path: std::path::PathBuf,
+        /// What is wrong.
+        why: String,
+    },
+    /// A laser scan that does not fit the reference shape.
+    #[error("scan {}: {why}", path.display())]
+    Scan {
+        /// The scan file.
+        path: std::path::PathBuf,
+        /// What is wrong, with the figures.
+        why: String,
+    },
+    /// A dataset or release folder that is there already, or not as expected.
+    #[error("{}: {why}", path.display())]
+    Folder {
+        /// The folder.
+        path: std::path::PathBuf,
+        /// What is wrong and what to do.
+        why: String,
+    },
+    /// A release that failed verification: every fault, each naming its file.
+    #[error("release {}: {} fault(s):\n  {}", path.display(), faults.len(), faults.join("\n  "))]
+    Verification {
+        /// The release.
+        path: std::path::PathBuf,
+        /// One line per fault.
+        faults: Vec<String>,
+    },
 }

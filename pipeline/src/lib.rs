@@ -3,7 +3,8 @@
 //!
 //! - [`simulate`]: a synthetic polarized capture of a mesh (render, sensor frames, layouts);
 //! - [`ground_truth`]: normal, mask and depth maps of a mesh in every view of a scene;
-//! - [`build`]: datasets from posed, masked capture sessions;
+//! - [`build`]: datasets from posed, masked capture sessions (scan ground truth, environment
+//!   map from a [`panorama`]); [`publish`]: releases of datasets; [`verify`]: their checks;
 //! - [`evaluation_set`]: the reconstruction evaluation set (shapes, materials, held-out views);
 //! - [`demo`]: the built-in example end to end: simulate, process raw frames, build the
 //!   dataset, compare with the truth, reconstruct, evaluate ([`demo::DemoReport`]).
@@ -17,6 +18,9 @@ pub mod demo;
 pub mod error;
 pub mod evaluation_set;
 pub mod ground_truth;
+pub mod panorama;
+pub mod publish;
 pub mod simulate;
+pub mod verify;
 
 pub use error::{Error, Result};

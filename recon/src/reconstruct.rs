@@ -15,7 +15,7 @@ use std::io::Write;
 use std::path::Path;
 
 /// What the user chose; [`Options::default`] holds every default of `rmvp recon`.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Options {
     /// Model preset.
     pub preset: Preset,
@@ -38,6 +38,9 @@ pub struct Options {
     /// Train at most this many iterations in this call, then checkpoint and return without
     /// results (time-boxed sessions; continue with `resume`).
     pub stop_after: Option<u32>,
+    /// Write the per-view outputs (normal maps, Stokes, comparison) beside the mesh; off: the
+    /// mesh alone (a dataset's reference shape).
+    pub view_outputs: bool,
 }
 
 impl Default for Options {
@@ -53,6 +56,7 @@ impl Default for Options {
             batch_rays: None,
             seed: 0,
             stop_after: None,
+            view_outputs: true,
         }
     }
 }
@@ -131,12 +135,16 @@ pub fn reconstruct(
         }
         on_step(&report, &trainer);
     }
-    write_results(&trainer, scene, out, options.mesh_resolution)?;
+    if options.view_outputs {
+        write_results(&trainer, scene, out, options.mesh_resolution)?;
+    } else {
+        write_mesh(&trainer, out, options.mesh_resolution)?;
+    }
     Ok(trainer)
 }
 
-/// Mesh, normal maps (every view), re-rendered Stokes (training views) and `comparison.png`.
-pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, mesh_resolution: usize) -> Result<()> {
+/// The extracted surface alone, `out/mesh.ply` (world frame).
+pub fn write_mesh(trainer: &Trainer, out: &Path, mesh_resolution: usize) -> Result<()> {
     let lw = trainer.level_weight();
     let (model, params) = (&trainer.model, &trainer.params);
     let mesh = extract_mesh(model, params, &lw, mesh_resolution, &trainer.set.frame, trainer.fd_step(&lw));
@@ -144,6 +152,12 @@ pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, mesh_resoluti
         return Err(Error::NoSurface);
     }
     mesh.write(&out.join(MESH))?;
+    Ok(())
+}
+
+/// Mesh, normal maps (every view), re-rendered Stokes (training views) and `comparison.png`.
+pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, mesh_resolution: usize) -> Result<()> {
+    write_mesh(trainer, out, mesh_resolution)?;
     let (normals_dir, stokes_dir) = (out.join("normals"), out.join("stokes"));
     for d in [&normals_dir, &stokes_dir] {
         std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;

@@ -83,8 +83,8 @@ impl TrainConfig {
                     final_fraction: 0.05,
                 },
             ),
-            Preset::Fast => (
-                256,
+            Preset::Fast | Preset::Dense => (
+                if preset == Preset::Dense { 512 } else { 256 },
                 Sampling { coarse: 32, fine: 32, steps: 4 },
                 AdamConfig {
                     lr_network: 2e-3,
@@ -104,7 +104,7 @@ impl TrainConfig {
             weights: LossWeights::from_fn(|term| match term {
                 Term::Photometric | Term::Geometric | Term::Mask => 1.0,
                 Term::Eikonal => 0.1,
-                Term::Curvature if preset == Preset::Fast => 5e-4,
+                Term::Curvature if preset != Preset::Paper => 5e-4,
                 Term::Curvature => 0.0,
             }),
             photometric: true,

@@ -126,6 +126,20 @@ impl EnvMap {
         [0, 1, 2].map(|k| (a[k] * (1.0 - fx) + b[k] * fx) * (1.0 - fy) + (c[k] * (1.0 - fx) + e[k] * fx) * fy)
     }
 
+    /// This light as a `width x height` lat-long image of world directions: texel `(u, v)`
+    /// holds [`EnvMap::eval`] of the world direction the module's mapping gives it (the map
+    /// turned into the world frame, e.g. a dataset's `gt/env.exr`).
+    pub fn world_image(&self, width: usize, height: usize) -> Image<f32> {
+        let mut data = Vec::with_capacity(width * height * 3);
+        for j in 0..height {
+            for i in 0..width {
+                let d = direction((i as f32 + 0.5) / width as f32, (j as f32 + 0.5) / height as f32);
+                data.extend(self.eval(d));
+            }
+        }
+        Image::from_vec(width, height, 3, data).expect("sized")
+    }
+
     /// Solid-angle density of [`EnvMap::sample`] at direction `d`.
     pub fn pdf(&self, d: Vec3) -> f32 {
         let d = self.world_to_map(d);

@@ -1,19 +1,30 @@
-//! `rmvp dataset ...`: scene folders. `info` summarises and validates, `convert` rewrites in
-//! another layout, `render-normals` ray casts a mesh's ground-truth maps in every view.
+//! `rmvp dataset ...`: datasets and scene folders. `build` makes a dataset of a posed, masked
+//! session, `publish` a release of datasets, `verify` checks one; `info` summarises and
+//! validates a scene, `convert` rewrites it in another layout, `render-normals` ray casts a
+//! mesh's ground-truth maps in every view.
 
 use anyhow::Result;
 use rmvp_dataset::layout::{convert_scene, read_scene, Layout};
 use rmvp_dataset::summary::SceneSummary;
 use rmvp_dataset::Mesh;
-use rmvp_pipeline::build::{build_dataset, BuildOptions, TrainViews};
+use rmvp_pipeline::build::{build_dataset, BuildOptions, LengthUnit, PanoramaInput, ScanInput, TrainViews};
 use rmvp_pipeline::ground_truth::write_ground_truth_maps;
+use rmvp_pipeline::publish::{publish, Archive, PublishOptions};
+use rmvp_pipeline::verify::verify;
+use rmvp_recon::model::Preset;
 use std::path::PathBuf;
 
 /// The subcommands of `rmvp dataset`.
 #[derive(clap::Subcommand)]
 pub enum Command {
-    /// Build a dataset from a posed, masked capture session (NeRSP layout and ours).
+    /// Build a dataset from a posed, masked capture session (NeRSP layout and ours), with
+    /// ground truth from a laser scan and an environment map from a panorama.
     Build(BuildArgs),
+    /// Publish built datasets as a release: per-object folders, datasheet, contact sheets,
+    /// SHA256SUMS, an optional archive.
+    Publish(PublishArgs),
+    /// Verify a release: checksums, views, the NeRSP layout, masks and cameras against the scan.
+    Verify(VerifyArgs),
     /// Summarise and validate a scene folder (NeRSP or rmvp layout).
     Info(InfoArgs),
     /// Convert a scene between the NeRSP and rmvp layouts, without loss.
@@ -33,6 +44,62 @@ pub struct BuildArgs {
     /// Training views: a count, spread over the viewing directions, or names (`000,007,013`).
     #[arg(long, value_parser = str::parse::<TrainViews>, default_value = "6")]
     train_views: TrainViews,
+    /// The camera calibration the poses used (`camera.json`): its figures go in the record.
+    #[arg(long)]
+    camera: Option<PathBuf>,
+    /// A laser scan of the object (PLY, STL or OBJ; any pose): aligned onto a reference
+    /// reconstruction from all views, it gives the ground truth (mesh, normals, depth).
+    #[arg(long)]
+    scan: Option<PathBuf>,
+    /// The scan's unit of length: mm, cm, m or in (checked where the world is in millimetres).
+    #[arg(long, value_parser = str::parse::<LengthUnit>, default_value = "mm")]
+    scan_units: LengthUnit,
+    /// An equirectangular panorama (EXR, HDR, PNG or JPEG): the environment map, turned into
+    /// the world frame.
+    #[arg(long)]
+    env: Option<PathBuf>,
+    /// Turn of the panorama about its up axis after the board's frame, degrees.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    env_yaw: f64,
+    /// The reference reconstruction's preset (with --scan).
+    #[arg(long, value_enum, default_value_t = BuildOptions::default().reference.preset)]
+    reference_preset: Preset,
+    /// The reference reconstruction's iterations (default: the preset's).
+    #[arg(long)]
+    reference_iters: Option<u32>,
+    /// The reference mesh's marching grid cells per axis.
+    #[arg(long, default_value_t = BuildOptions::default().reference.mesh_resolution)]
+    reference_mesh_res: usize,
+    /// Continue an unfinished build in the output folder.
+    #[arg(long)]
+    resume: bool,
+}
+
+/// Arguments of `rmvp dataset publish`.
+#[derive(clap::Args)]
+pub struct PublishArgs {
+    /// Built datasets (`rmvp dataset build`), one object each.
+    #[arg(required = true)]
+    datasets: Vec<PathBuf>,
+    /// The release folder (must not exist).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// SPDX license identifier of the data.
+    #[arg(long, default_value_t = PublishOptions::default().license)]
+    license: String,
+    /// Title of the datasheet.
+    #[arg(long, default_value_t = PublishOptions::default().title)]
+    title: String,
+    /// Also write the release as one archive beside it: tar or zip.
+    #[arg(long, value_parser = str::parse::<Archive>)]
+    archive: Option<Archive>,
+}
+
+/// Arguments of `rmvp dataset verify`.
+#[derive(clap::Args)]
+pub struct VerifyArgs {
+    /// The release folder.
+    release: PathBuf,
 }
 
 /// Arguments of `rmvp dataset info`.
@@ -75,16 +142,39 @@ pub struct RenderNormalsArgs {
 /// Run a `rmvp dataset` subcommand.
 pub fn run(command: Command) -> Result<()> {
     match command {
-        Command::Build(args) => {
-            let options = BuildOptions { session: args.session, output: args.output, train: args.train_views };
-            let scene = build_dataset(&options)?;
-            let train: Vec<&str> = scene.train_views().map(|v| v.name.as_str()).collect();
+        Command::Build(args) => build(args),
+        Command::Publish(args) => {
+            let options = PublishOptions {
+                datasets: args.datasets,
+                output: args.output,
+                license: args.license,
+                title: args.title,
+                archive: args.archive,
+                progress: true,
+            };
+            let release = publish(&options)?;
             println!(
-                "{} views ({} training: {}) -> {}/nersp and rmvp",
-                scene.views.len(),
-                train.len(),
-                train.join(" "),
+                "{} object(s) ({}), {} files, {:.1} MB -> {}",
+                release.objects.len(),
+                release.objects.join(", "),
+                release.files,
+                release.bytes as f64 / 1e6,
                 options.output.display()
+            );
+            if let Some(archive) = release.archive {
+                println!("archive {}", archive.display());
+            }
+            Ok(())
+        }
+        Command::Verify(args) => {
+            let report = verify(&args.release)?;
+            println!(
+                "{}: verified ({} objects: {}; {} files, {} views)",
+                args.release.display(),
+                report.objects.len(),
+                report.objects.join(", "),
+                report.files,
+                report.views
             );
             Ok(())
         }
@@ -101,6 +191,47 @@ pub fn run(command: Command) -> Result<()> {
             Ok(())
         }
     }
+}
+
+fn build(args: BuildArgs) -> Result<()> {
+    let defaults = BuildOptions::default();
+    let options = BuildOptions {
+        session: args.session,
+        output: args.output,
+        train: args.train_views,
+        calibration: args.camera,
+        scan: args.scan.map(|path| ScanInput { path, units: args.scan_units }),
+        panorama: args.env.map(|path| PanoramaInput { path, yaw_deg: args.env_yaw }),
+        reference: rmvp_recon::reconstruct::Options {
+            preset: args.reference_preset,
+            iterations: args.reference_iters,
+            mesh_resolution: args.reference_mesh_res,
+            ..defaults.reference
+        },
+        resume: args.resume,
+        progress: true,
+    };
+    let record = build_dataset(&options)?;
+    println!(
+        "{} views ({} training: {}) -> {}/nersp and rmvp",
+        record.views.len(),
+        record.train.len(),
+        record.train.join(" "),
+        options.output.display()
+    );
+    if let Some(scan) = &record.scan {
+        println!(
+            "scan aligned: scale {:.5}, median distance {:.4} ({:.3} % of the size), masks IoU mean {:.4}",
+            scan.alignment.transform.s,
+            scan.alignment.median_distance,
+            100.0 * scan.median_distance_relative,
+            scan.mask_iou_mean
+        );
+    }
+    for stage in &record.stages {
+        println!("  {:<13} {:>8.1} s", stage.name, stage.seconds);
+    }
+    Ok(())
 }
 
 fn info(args: InfoArgs) -> Result<()> {

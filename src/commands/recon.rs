@@ -15,7 +15,8 @@ pub struct Args {
     /// Output folder: mesh.ply, normals/, stokes/, comparison.png, log.jsonl, checkpoint.bin.
     #[arg(short, long)]
     output: PathBuf,
-    /// Model preset: `fast` (hash grid, minutes on a CPU) or `paper` (NeRSP's 8x256 MLP).
+    /// Model preset: `fast` (hash grid, minutes on a CPU), `dense` (a finer grid, twice the
+    /// rays, 4000 iterations: a dataset's reference shape) or `paper` (NeRSP's 8x256 MLP).
     #[arg(long, value_enum, default_value_t = Options::default().preset)]
     preset: Preset,
     /// Training iterations (default: the preset's; fast 1000, about 3 minutes on 2 cores).
@@ -36,6 +37,9 @@ pub struct Args {
     /// Rays per iteration (default: the preset's; fast 256, paper 512).
     #[arg(long)]
     batch: Option<usize>,
+    /// Write the mesh alone (no normal maps, Stokes or comparison).
+    #[arg(long)]
+    mesh_only: bool,
     /// Iterations between checkpoints.
     #[arg(long, default_value_t = Options::default().checkpoint_every)]
     checkpoint_every: u32,
@@ -61,6 +65,7 @@ pub fn run(args: Args) -> Result<()> {
         batch_rays: args.batch,
         seed: args.seed,
         stop_after: args.stop_after,
+        view_outputs: !args.mesh_only,
     };
     let total = options.config().iterations;
     let bar = progress(total as u64, "recon");

@@ -1,0 +1,431 @@
+//! Releases of built datasets (`rmvp dataset publish`): one folder per object (both layouts
+//! and the build record), contact sheets, a generated datasheet (`README.md`) and
+//! `SHA256SUMS`; optionally a tar or zip archive of the whole. A release is written beside its
+//! final place (`RELEASE.partial`) and moved there whole, so that a folder named like a
+//! release is always complete.
+//!
+//! ```text
+//! RELEASE/README.md                  datasheet: objects, camera, calibration, poses, scan
+//!                                    alignment, split, formats and frames, license, loading
+//! RELEASE/SHA256SUMS                 `sha256sum -c` format, every other file
+//! RELEASE/<object>/build.json        the build record (rmvp_pipeline::build::BuildRecord)
+//! RELEASE/<object>/nersp/ rmvp/      the two layouts
+//! RELEASE/<object>/contact/s0.png aop_dop.png normals.png
+//! ```
+
+use crate::build::{BuildRecord, ENV_CONVENTION};
+use crate::{Error, Result};
+use rmvp_dataset::io::{png, write_bytes_atomically};
+use rmvp_dataset::layout::{read_scene, Layout};
+use rmvp_dataset::progress::progress_bar;
+use rmvp_dataset::visualize::{aop_picture, contact_sheet, downsample, normal_picture, preview};
+use rmvp_dataset::{Image, Scene};
+use std::fmt::Write as _;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// The checksum file of a release.
+pub const CHECKSUMS: &str = "SHA256SUMS";
+/// The datasheet of a release.
+pub const DATASHEET: &str = "README.md";
+/// Contact sheets of an object.
+pub const CONTACT_FOLDER: &str = "contact";
+/// Contact-sheet tiles are at most this wide.
+const TILE_WIDTH: usize = 256;
+
+/// An archive of a whole release.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Archive {
+    /// `RELEASE.tar` (uncompressed: the float arrays barely compress).
+    Tar,
+    /// `RELEASE.zip` (stored).
+    Zip,
+}
+
+impl std::str::FromStr for Archive {
+    type Err = String;
+
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        match text {
+            "tar" => Ok(Archive::Tar),
+            "zip" => Ok(Archive::Zip),
+            other => Err(format!("unknown archive {other:?} (tar, zip)")),
+        }
+    }
+}
+
+/// What to publish; [`PublishOptions::default`] holds `rmvp dataset publish`'s defaults.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PublishOptions {
+    /// Built datasets (`rmvp dataset build`), one object each.
+    pub datasets: Vec<PathBuf>,
+    /// The release folder (must not exist).
+    pub output: PathBuf,
+    /// SPDX license identifier of the data.
+    pub license: String,
+    /// Title of the datasheet.
+    pub title: String,
+    /// An archive of the release beside it.
+    pub archive: Option<Archive>,
+    /// Show progress bars.
+    pub progress: bool,
+}
+
+impl Default for PublishOptions {
+    fn default() -> Self {
+        Self {
+            datasets: Vec::new(),
+            output: PathBuf::from("release"),
+            license: "CC-BY-4.0".into(),
+            title: "Polarized multi-view dataset of reflective objects".into(),
+            archive: None,
+            progress: true,
+        }
+    }
+}
+
+/// What a release holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Release {
+    /// Object folders, in order.
+    pub objects: Vec<String>,
+    /// Files listed in `SHA256SUMS`.
+    pub files: usize,
+    /// Their bytes.
+    pub bytes: u64,
+    /// The archive written, if any.
+    pub archive: Option<PathBuf>,
+}
+
+/// Publish `options.datasets` into `options.output`.
+pub fn publish(options: &PublishOptions) -> Result<Release> {
+    let out = &options.output;
+    if out.exists() {
+        return Err(Error::Folder { path: out.clone(), why: "exists already; a release is written once".into() });
+    }
+    if options.datasets.is_empty() {
+        return Err(Error::Folder { path: out.clone(), why: "no dataset to publish".into() });
+    }
+    let partial = sibling(out, "partial");
+    if partial.exists() {
+        std::fs::remove_dir_all(&partial).map_err(|e| rmvp_dataset::Error::io(&partial, e))?;
+    }
+    let mut objects: Vec<(String, BuildRecord, Scene)> = Vec::new();
+    for dataset in &options.datasets {
+        let record = BuildRecord::read(dataset)?;
+        if !record.complete {
+            return Err(Error::Folder {
+                path: dataset.clone(),
+                why: "an unfinished build (rmvp dataset build --resume completes it)".into(),
+            });
+        }
+        let mut name = folder_name(&record.object);
+        if objects.iter().any(|(n, _, _)| *n == name) {
+            name = format!("{name}_{}", objects.len() + 1);
+        }
+        let scene = read_scene(&dataset.join(Layout::Rmvp.name()))?;
+        let dir = partial.join(&name);
+        for layout in [Layout::Nersp, Layout::Rmvp] {
+            copy_tree(&dataset.join(layout.name()), &dir.join(layout.name()))?;
+        }
+        copy_file(&dataset.join(crate::build::BUILD_FILE), &dir.join(crate::build::BUILD_FILE))?;
+        write_contact_sheets(&scene, &dir.join(CONTACT_FOLDER))?;
+        objects.push((name, record, scene));
+    }
+    let datasheet = datasheet(options, &objects);
+    write_bytes_atomically(&partial.join(DATASHEET), datasheet.as_bytes())?;
+    let files = list_files(&partial)?;
+    let bar = progress_bar(options.progress, files.len() as u64, "checksums");
+    let mut sums = String::new();
+    let mut bytes = 0;
+    for file in &files {
+        let (hash, size) = sha256_file(&partial.join(file))?;
+        bytes += size;
+        let _ = writeln!(sums, "{hash}  {file}");
+        bar.inc(1);
+    }
+    bar.finish();
+    write_bytes_atomically(&partial.join(CHECKSUMS), sums.as_bytes())?;
+    std::fs::rename(&partial, out).map_err(|e| rmvp_dataset::Error::io(out, e))?;
+    let archive = options.archive.map(|kind| write_archive(out, kind)).transpose()?;
+    Ok(Release { objects: objects.into_iter().map(|(n, _, _)| n).collect(), files: files.len(), bytes, archive })
+}
+
+/// `path` with `.suffix` added to its file name.
+fn sibling(path: &Path, suffix: &str) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(format!(".{suffix}"));
+    path.with_file_name(name)
+}
+
+/// A folder name from an object name: letters, digits, `-` and `_`.
+fn folder_name(object: &str) -> String {
+    let name: String =
+        object.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' }).collect();
+    if name.is_empty() {
+        "object".into()
+    } else {
+        name
+    }
+}
+
+fn copy_file(from: &Path, to: &Path) -> Result<()> {
+    if let Some(parent) = to.parent() {
+        std::fs::create_dir_all(parent).map_err(|e| rmvp_dataset::Error::io(parent, e))?;
+    }
+    std::fs::copy(from, to).map_err(|e| rmvp_dataset::Error::io(from, e))?;
+    Ok(())
+}
+
+fn copy_tree(from: &Path, to: &Path) -> Result<()> {
+    for file in list_files(from)? {
+        copy_file(&from.join(&file), &to.join(&file))?;
+    }
+    Ok(())
+}
+
+/// Every file under `dir`, as `/`-separated relative paths, sorted.
+pub fn list_files(dir: &Path) -> Result<Vec<String>> {
+    fn walk(dir: &Path, prefix: &str, out: &mut Vec<String>) -> Result<()> {
+        let entries = std::fs::read_dir(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
+        for entry in entries {
+            let entry = entry.map_err(|e| rmvp_dataset::Error::io(dir, e))?;
+            let name = entry.file_name().to_string_lossy().into_owned();
+            let relative = if prefix.is_empty() { name } else { format!("{prefix}/{name}") };
+            if entry.path().is_dir() {
+                walk(&entry.path(), &relative, out)?;
+            } else {
+                out.push(relative);
+            }
+        }
+        Ok(())
+    }
+    let mut files = Vec::new();
+    walk(dir, "", &mut files)?;
+    files.sort();
+    Ok(files)
+}
+
+/// SHA-256 (hexadecimal) and size of a file, streamed.
+pub fn sha256_file(path: &Path) -> Result<(String, u64)> {
+    use sha2::{Digest, Sha256};
+    let mut file = std::fs::File::open(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+    let (mut hasher, mut buffer, mut size) = (Sha256::new(), vec![0u8; 1 << 20], 0u64);
+    loop {
+        let n = file.read(&mut buffer).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+        if n == 0 {
+            break;
+        }
+        hasher.update(&buffer[..n]);
+        size += n as u64;
+    }
+    Ok((hasher.finalize().iter().map(|b| format!("{b:02x}")).collect(), size))
+}
+
+/// S0 previews, AoP x DoP and ground-truth normals of every view (training views first).
+fn write_contact_sheets(scene: &Scene, dir: &Path) -> Result<()> {
+    let shrink = |image: Image<u8>| {
+        let factor = image.width().div_ceil(TILE_WIDTH);
+        downsample(&image, factor)
+    };
+    let mut sheets: [Vec<Image<u8>>; 3] = Default::default();
+    for view in &scene.views {
+        if let Some(stokes) = &view.stokes {
+            let (aop, dop) = stokes.aop_dop();
+            sheets[0].push(shrink(preview(&stokes.s0)));
+            sheets[1].push(shrink(aop_picture(&aop, &dop, view.mask.as_ref())));
+        }
+        if let Some(normals) = &view.normals {
+            sheets[2].push(shrink(normal_picture(normals)));
+        }
+    }
+    std::fs::create_dir_all(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
+    for (tiles, name) in sheets.iter().zip(["s0.png", "aop_dop.png", "normals.png"]) {
+        if !tiles.is_empty() {
+            png::write_png_u8(&dir.join(name), &contact_sheet(tiles, 6))?;
+        }
+    }
+    Ok(())
+}
+
+/// The archive of `release` beside it (`RELEASE.tar` or `.zip`), written atomically.
+fn write_archive(release: &Path, kind: Archive) -> Result<PathBuf> {
+    let ext = match kind {
+        Archive::Tar => "tar",
+        Archive::Zip => "zip",
+    };
+    let path = sibling(release, ext);
+    let root = release.file_name().unwrap_or_default().to_string_lossy().into_owned();
+    let files = list_files(release)?;
+    rmvp_dataset::io::write_atomically(&path, |writer| {
+        match kind {
+            Archive::Tar => {
+                let mut tar = tar::Builder::new(writer);
+                for file in &files {
+                    tar.append_path_with_name(release.join(file), format!("{root}/{file}"))?;
+                }
+                tar.finish()?;
+            }
+            Archive::Zip => {
+                let mut zip = zip::ZipWriter::new_stream(writer);
+                let options = zip::write::SimpleFileOptions::default()
+                    .compression_method(zip::CompressionMethod::Stored)
+                    .large_file(true);
+                for file in &files {
+                    zip.start_file(format!("{root}/{file}"), options).map_err(std::io::Error::other)?;
+                    std::io::copy(&mut std::fs::File::open(release.join(file))?, &mut zip)?;
+                }
+                zip.finish().map_err(std::io::Error::other)?;
+            }
+        }
+        Ok(())
+    })?;
+    Ok(path)
+}
+
+/// The datasheet of a release.
+fn datasheet(options: &PublishOptions, objects: &[(String, BuildRecord, Scene)]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# {}\n", options.title);
+    let _ = writeln!(
+        s,
+        "Published with rmvp {} (`rmvp dataset publish`). License of the data: **{}** \
+         (<https://spdx.org/licenses/{}.html>). Check the files with `sha256sum -c {CHECKSUMS}` or \
+         `rmvp dataset verify .`.\n",
+        env!("CARGO_PKG_VERSION"),
+        options.license,
+        options.license
+    );
+    let _ = writeln!(s, "## Objects\n");
+    let _ = writeln!(s, "| object | views | training views | image size | ground truth | environment map |");
+    let _ = writeln!(s, "| --- | --- | --- | --- | --- | --- |");
+    for (name, record, scene) in objects {
+        let _ = writeln!(
+            s,
+            "| `{name}` | {} | {} ({}) | {}x{} | {} | {} |",
+            record.views.len(),
+            record.train.len(),
+            record.train.join(", "),
+            record.size[0],
+            record.size[1],
+            if scene.mesh.is_some() { "laser scan, normals, depth" } else { "none" },
+            if scene.env_map.is_some() { "yes" } else { "no" },
+        );
+    }
+    for (name, record, _) in objects {
+        let _ = writeln!(s, "\n## `{name}`\n");
+        let camera = &record.camera;
+        let identity = &camera["identity"];
+        let _ = writeln!(
+            s,
+            "- Camera: {} {} (serial {}, {}), {} at {}x{} sensor pixels.",
+            identity["vendor"].as_str().unwrap_or("?"),
+            identity["model"].as_str().unwrap_or("?"),
+            identity["serial"].as_str().unwrap_or("?"),
+            identity["protocol"].as_str().unwrap_or("?"),
+            camera["pixel_format"].as_str().unwrap_or("?"),
+            camera["width"],
+            camera["height"],
+        );
+        let settings = &record.settings;
+        let _ = writeln!(
+            s,
+            "- Settings: exposure(s) {} us, gain {} dB, {} frame(s) averaged, {} dark frame(s).",
+            settings["exposures_us"], settings["camera"]["gain_db"], settings["average"], settings["dark_frames"]
+        );
+        match &record.calibration {
+            Some(c) => {
+                let _ = writeln!(
+                    s,
+                    "- Calibration: RMS reprojection error {:.3} px over {} board images; std of fx, fy, cx, cy \
+                     {:.2}, {:.2}, {:.2}, {:.2} px.",
+                    c.rms_px, c.images, c.k_std_px[0], c.k_std_px[1], c.k_std_px[2], c.k_std_px[3]
+                );
+            }
+            None => {
+                let _ = writeln!(s, "- Calibration: not recorded with this build.");
+            }
+        }
+        let p = &record.poses;
+        let _ = writeln!(
+            s,
+            "- Poses: {} ({}); reprojection RMS per view mean {} px, worst {} px; {} view(s) not posed.",
+            p.method.as_str().unwrap_or("?"),
+            p.world,
+            p.residual_px_mean.map_or("-".into(), |r| format!("{r:.3}")),
+            p.residual_px_max.map_or("-".into(), |r| format!("{r:.3}")),
+            p.failed.len()
+        );
+        if let (Some(scan), Some(reference)) = (&record.scan, &record.reference) {
+            let a = &scan.alignment;
+            let _ = writeln!(
+                s,
+                "- Ground truth: laser scan `{}` ({:?}) aligned by ICP with scale onto a reference reconstruction \
+                 from all {} views ({:?} preset, {} iterations): scale {:.5}, RMS point-to-plane {:.4}, median \
+                 distance {:.4} world units ({:.3} % of the object's size), {:.1} % inliers; captured masks \
+                 against the scan's silhouettes: IoU mean {:.4}, lowest {:.4} (view {}).",
+                scan.file.file_name().unwrap_or_default().to_string_lossy(),
+                scan.units,
+                reference.views,
+                reference.preset,
+                reference.iterations,
+                a.transform.s,
+                a.rms,
+                a.median_distance,
+                100.0 * scan.median_distance_relative,
+                100.0 * a.inlier_ratio,
+                scan.mask_iou_mean,
+                scan.mask_iou_min.0,
+                scan.mask_iou_min.1
+            );
+        }
+        if let Some(env) = &record.environment {
+            let _ = writeln!(
+                s,
+                "- Environment map: panorama `{}` ({}x{}) turned into the world frame.",
+                env.file.file_name().unwrap_or_default().to_string_lossy(),
+                env.size[0],
+                env.size[1]
+            );
+        }
+    }
+    let _ = write!(
+        s,
+        "{}",
+        FORMATS.replace("{ENV}", ENV_CONVENTION).replace("{CHECKSUMS}", CHECKSUMS).replace("{CONTACT}", CONTACT_FOLDER)
+    );
+    s
+}
+
+/// The datasheet's fixed part: files, frames, loading.
+const FORMATS: &str = r#"
+## Files and frames
+
+Each object folder holds the same data twice:
+
+- `nersp/`, the layout of the official NeRSP loader (`models/dataio/ours_data.py`), read unchanged:
+  `cameras.npz` (`world_mat_i` = K [R | t] as 4x4, `scale_mat_i` = unit sphere to world, training
+  views i = 0..N-1, 0-based), `image/0000.png` (8-bit preview of S0),
+  `input_azimuth_maps/0000.png` (16-bit RGBA: R = G = B = AoP / pi * 65535, alpha = mask),
+  `s0/ s1/ s2/0000.npy` (float32 H x W x 3; the loader multiplies them by 0.5), and in `gt/`
+  every view, training and held out: `cameras.json` (K, R, t, size, split), `mask/`, `normal/`
+  (world-frame unit normals, EXR channels N.X N.Y N.Z), `depth/` (z-depth, EXR channel Z),
+  `mesh.ply` (the aligned scan, world frame), `env.exr`.
+- `rmvp/`, rmvp's layout: `scene.json` (versioned manifest) and `views/<name>/` per view
+  (`stokes.exr`, `mask.png`, `aop.exr`, `dop.exr`, `normal.exr`, `depth.exr`).
+
+Conventions: cameras follow OpenCV (x right, y down, z forward, `x_cam = R x_world + t`, pixel
+(i, j) centred at (i + 0.5, j + 0.5)); lens distortion is removed from every image. Stokes vectors
+are linear radiance in the image frame: AoP = 0.5 atan2(S2, S1) from image +x towards image +y
+(down), `I(theta) = 0.5 (S0 + S1 cos 2 theta + S2 sin 2 theta)`. The ground-truth silhouette of a
+view is where its depth is positive. Environment map: {ENV}.
+
+`{CONTACT}/` holds pictures of every view: S0, AoP (hue) x DoP (brightness), ground-truth normals.
+`build.json` records how each object was built (inputs, stages, residuals).
+
+## Loading
+
+- NeRSP: point its `data_dir` at an object's `nersp/` folder (`data_type = ours_real`).
+- rmvp: `rmvp recon OBJECT/nersp -o out` (either layout), `rmvp eval --pred out/mesh.ply --gt OBJECT/nersp/gt/mesh.ply --scene OBJECT/nersp`.
+- Exports: `rmvp dataset export OBJECT/rmvp --format nerfstudio|colmap|rmvp3d -o DIR`.
+"#;
