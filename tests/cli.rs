@@ -223,6 +223,43 @@ fn convert_round_trips_between_layouts() {
 }
 
 #[test]
+fn exports_give_the_same_cameras_and_rmvp3d_reads_back() {
+    let spot = fixture("spot_nersp");
+    let scene = rmvp_dataset::layout::read_scene(&spot).unwrap();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = |name: &str| tmp.path().join(name);
+    for format in ["nerfstudio", "colmap", "rmvp3d"] {
+        ok(&["dataset", "export", s(&spot), "--format", format, "-o", s(&dir(format))]);
+    }
+    let with_stokes: Vec<&rmvp_dataset::View> = scene.views.iter().filter(|v| v.stokes.is_some()).collect();
+    let same = |cameras: Vec<(String, rmvp_dataset::Camera)>| {
+        assert_eq!(cameras.len(), with_stokes.len());
+        for ((name, camera), view) in cameras.iter().zip(&with_stokes) {
+            assert!(name.contains(&view.name), "{name} for {}", view.name);
+            assert!((camera.k - view.camera.k).abs().max() < 1e-6, "{name}");
+            assert!((camera.r - view.camera.r).abs().max() < 1e-9 && (camera.t - view.camera.t).abs().max() < 1e-9);
+        }
+    };
+    let transforms = dir("nerfstudio").join("transforms.json");
+    same(rmvp_dataset::exchange::nerfstudio::Transforms::read(&transforms).unwrap().cameras(&transforms).unwrap());
+    assert!(dir("nerfstudio").join("masks/000.png").is_file());
+    let sparse = dir("colmap").join("sparse/0");
+    same(rmvp_dataset::exchange::colmap::ColmapModel::read(&sparse).unwrap().cameras(&sparse).unwrap());
+    assert!(dir("colmap").join("images/000.png").is_file());
+    // RMVP3D back into our layout: the same Stokes, masks and cameras.
+    ok(&["dataset", "import", s(&dir("rmvp3d")), "-o", s(&dir("back"))]);
+    let back = rmvp_dataset::layout::read_scene(&dir("back")).unwrap();
+    assert_eq!(back.normalization, scene.normalization);
+    for (a, b) in back.views.iter().zip(&with_stokes) {
+        assert_eq!((&a.stokes, &a.mask), (&b.stokes, &b.mask), "view {}", b.name);
+    }
+    let err = fails(&["dataset", "export", s(&spot), "--format", "blender", "-o", s(&dir("x"))]);
+    assert!(err.contains("unknown format \"blender\""), "{err}");
+    let err = fails(&["dataset", "export", s(&spot), "--format", "colmap", "-o", s(&dir("colmap"))]);
+    assert!(err.contains("not empty"), "{err}");
+}
+
+#[test]
 fn stokes_command_reproduces_the_fixture_azimuth_map() {
     let spot = fixture("spot_nersp");
     let tmp = tempfile::tempdir().unwrap();

@@ -5,9 +5,12 @@
 //! truth, and NeRSP on six views with the estimated poses and masks against the same run with
 //! the true ones. Failures of each step are refused by name, leaving the session as it was.
 
+use nalgebra::Vector3;
 use rmvp_align::normal_errors;
+use rmvp_align::{surface_metrics, Similarity, SurfaceOptions};
 use rmvp_calib::board::BoardSpec;
 use rmvp_calib::intrinsics::CameraCalibration;
+use rmvp_calib::lab::lab_environment;
 use rmvp_calib::lab::LabSetup;
 use rmvp_calib::normalization::visual_hull_sphere;
 use rmvp_calib::poses::accuracy::pose_errors;
@@ -15,10 +18,14 @@ use rmvp_calib::poses::PoseSet;
 use rmvp_calib::scene::posed_scene;
 use rmvp_capture::simulator::{SimulatedScene, SimulatedSetup, SimulatorConfig};
 use rmvp_dataset::io::png;
-use rmvp_dataset::{Camera, Scene};
+use rmvp_dataset::layout::read_scene;
+use rmvp_dataset::{Camera, Mesh, Scene};
+use rmvp_pipeline::build::BuildRecord;
 use rmvp_recon::extract::extract_mesh;
 use rmvp_recon::model::Preset;
 use rmvp_recon::train::{TrainConfig, Trainer};
+use rmvp_render::envmap::procedural_image;
+use rmvp_render::EnvMap;
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -193,9 +200,112 @@ fn a_lab_session_becomes_posed_masked_views() {
     );
     assert!(worst_deg < 0.3 && worst_rel < 0.005, "{worst_deg} deg, {worst_rel}");
 
-    // NeRSP on six views (both rings, all around) with the estimated poses and masks, and with
-    // the true ones: the normal error over all 24 views differs by less than 1.5 degrees.
-    let train: Vec<String> = ["000", "005", "008", "013", "016", "021"].map(String::from).to_vec();
+    // The release: the session posed by the board again (COLMAP's frame has no millimetres),
+    // a laser scan of the object (the true mesh, finer, with 0.05 mm of noise, turned and moved)
+    // and the simulator's environment as a panorama; built, published, verified.
+    ok(&[
+        "poses",
+        s(&lab),
+        "--method",
+        "charuco",
+        "--camera",
+        s(&camera_file),
+        "-o",
+        s(&charuco_file),
+        BOARD[0],
+        BOARD[1],
+    ]);
+    let subject = truth.subject.clone().unwrap();
+    let scan_file = tmp.path().join("scan.ply");
+    let placement =
+        Similarity { r: rotation(&Vector3::new(0.3, -1.0, 0.5), 2.1), t: Vector3::new(-250.0, 80.0, 1200.0), s: 1.0 };
+    let scan = placement.apply_to_mesh(&noisy(&subdivided(&subject), 0.05));
+    // First in metres while said to be millimetres: refused after the reference shape, and the
+    // unfinished build says so.
+    Similarity { s: 0.001, ..placement }.apply_to_mesh(&subdivided(&subject)).write(&scan_file).unwrap();
+    let pano = tmp.path().join("studio.exr");
+    rmvp_dataset::io::exr::write_exr(&pano, &procedural_image(), &["R", "G", "B"]).unwrap();
+    let dataset = tmp.path().join("dataset");
+    let train = "000,005,008,013,016,021";
+    let build = |extra: &[&str], run: fn(&[&str]) -> String| {
+        let mut args = vec!["dataset", "build", s(&lab), "-o", s(&dataset), "--train-views", train];
+        args.extend(["--camera", s(&camera_file), "--scan", s(&scan_file), "--env", s(&pano)]);
+        args.extend(["--reference-preset", "fast", "--reference-iters", "500", "--reference-mesh-res", "192"]);
+        args.extend_from_slice(extra);
+        run(&args)
+    };
+    let err = build(&[], fails);
+    assert!(err.contains("scan.ply") && err.contains("wrong units"), "{err}");
+    let record = BuildRecord::read(&dataset).unwrap();
+    assert!(!record.complete && record.stages.iter().any(|s| s.name == "reference"), "{record:?}");
+    assert!(!dataset.join("nersp").exists() && !dataset.join("rmvp").exists());
+    let err = build(&[], fails);
+    assert!(err.contains("unfinished build") && err.contains("--resume"), "{err}");
+    // The right scan, resumed: the reference is not trained again.
+    scan.write(&scan_file).unwrap();
+    build(&["--resume"], ok);
+    let record = BuildRecord::read(&dataset).unwrap();
+    assert!(record.complete);
+    let log = std::fs::read_to_string(dataset.join("work/reference/log.jsonl")).unwrap();
+    assert_eq!(log.lines().count(), 500);
+    let aligned = record.scan.as_ref().unwrap();
+    eprintln!(
+        "scan aligned: scale {:.5}, median distance {:.4} mm, masks IoU mean {:.4}, lowest {:.4}",
+        aligned.alignment.transform.s, aligned.alignment.median_distance, aligned.mask_iou_mean, aligned.mask_iou_min.0
+    );
+    let release = tmp.path().join("release");
+    ok(&["dataset", "publish", s(&dataset), "-o", s(&release), "--archive", "tar"]);
+    let verified = ok(&["dataset", "verify", s(&release)]);
+    assert!(verified.contains("verified (1 objects: spot; ") && verified.contains("24 views"), "{verified}");
+    let datasheet = std::fs::read_to_string(release.join("README.md")).unwrap();
+    assert!(datasheet.contains("CC-BY-4.0") && datasheet.contains("charuco") && datasheet.contains("scan.ply"));
+    assert!(tmp.path().join("release.tar").is_file() && release.join("spot/contact/normals.png").is_file());
+
+    // The release's ground truth against the simulator's: the mesh within 0.2 % of the object's
+    // size, the normals within a degree (median), the environment map as the renderer's.
+    let published = read_scene(&release.join("spot/nersp")).unwrap();
+    let gt_mesh = published.mesh.clone().unwrap();
+    let size = 2.0 * lab_setup().object_radius_mm;
+    let chamfer = surface_metrics(&gt_mesh, &subject, &SurfaceOptions::default()).unwrap().chamfer;
+    let mut angles = Vec::new();
+    for view in &published.views {
+        let v: usize = view.name.parse().unwrap();
+        let want = truth.geometry(v).normals;
+        let got = view.normals.as_ref().unwrap();
+        for (a, b) in got.data().chunks_exact(3).zip(want.data().chunks_exact(3)) {
+            let dot: f32 = a.iter().zip(b).map(|(x, y)| x * y).sum();
+            if a.iter().any(|&x| x != 0.0) && b.iter().any(|&x| x != 0.0) {
+                angles.push(dot.clamp(-1.0, 1.0).acos().to_degrees());
+            }
+        }
+    }
+    angles.sort_by(f32::total_cmp);
+    let median = angles[angles.len() / 2];
+    eprintln!(
+        "release ground truth: Chamfer {chamfer:.4} mm ({:.3} % of the size), normals median {median:.3} deg",
+        100.0 * chamfer / size
+    );
+    assert!(chamfer < 0.002 * size && median < 1.0, "Chamfer {chamfer} mm, median {median} deg");
+    let env = published.env_map.as_ref().unwrap();
+    let want = lab_environment(EnvMap::procedural()).world_image(env.width(), env.height());
+    let worst = env.data().iter().zip(want.data()).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);
+    assert!(worst < 1e-5, "environment map differs by {worst}");
+
+    // A damaged file in the release is named.
+    let victim = release.join("spot/nersp/s0/0003.npy");
+    let original = std::fs::read(&victim).unwrap();
+    let mut damaged = original.clone();
+    *damaged.last_mut().unwrap() ^= 1;
+    std::fs::write(&victim, &damaged).unwrap();
+    let err = fails(&["dataset", "verify", s(&release)]);
+    assert!(err.contains("spot/nersp/s0/0003.npy: checksum differs"), "{err}");
+    std::fs::write(&victim, &original).unwrap();
+
+    // NeRSP on the release's six views (`rmvp recon`, estimated poses and masks, one thread)
+    // beside the same run with the true poses and masks (one thread): the normal error over
+    // all 24 views differs by less than 1.5 degrees; and the release's ground truth judges the
+    // first as the simulator's does, within 1.5 degrees.
+    let train: Vec<String> = train.split(',').map(String::from).collect();
     let estimated_scene = posed_scene(&lab, &charuco, Some(&masks), &train).unwrap();
     let mut true_scene = estimated_scene.clone();
     for (v, view) in true_scene.views.iter_mut().enumerate() {
@@ -208,19 +318,69 @@ fn a_lab_session_becomes_posed_masked_views() {
     for (v, view) in ground_truth.views.iter_mut().enumerate() {
         view.normals = Some(truth.geometry(v).normals);
     }
-    // Side by side, one thread each: two cores stay busier than with one run on both (results
-    // do not depend on the thread count).
-    let alone = |scene: &Scene| {
+    let recon = tmp.path().join("recon");
+    let (release_run, with_truth) = std::thread::scope(|scope| {
+        let release_run = scope.spawn(|| {
+            ok(&[
+                "--threads",
+                "1",
+                "recon",
+                s(&release.join("spot/nersp")),
+                "-o",
+                s(&recon),
+                "--iters",
+                "400",
+                "--mesh-res",
+                "160",
+                "--mesh-only",
+            ])
+        });
         let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        pool.install(|| reconstruct(scene, &ground_truth, 400))
-    };
-    let (with_estimates, with_truth) = std::thread::scope(|scope| {
-        let estimates = scope.spawn(|| alone(&estimated_scene));
-        let truth = alone(&true_scene);
-        (estimates.join().unwrap(), truth)
+        let with_truth = pool.install(|| reconstruct(&true_scene, &ground_truth, 400));
+        (release_run.join().unwrap(), with_truth)
     });
-    eprintln!("normal MAE over 24 views: {with_estimates:.2} deg with estimated poses and masks, {with_truth:.2} with the true ones");
+    drop(release_run);
+    let mesh = rmvp_dataset::Mesh::read(&recon.join("mesh.ply")).unwrap();
+    let with_estimates = normal_errors(&mesh, &ground_truth).unwrap().mean_mae_deg;
+    let judged = normal_errors(&mesh, &published).unwrap().mean_mae_deg;
+    eprintln!(
+        "normal MAE over 24 views: {with_estimates:.2} deg from the release, {with_truth:.2} with the true poses and \
+         masks; the release's own ground truth gives the first {judged:.2}"
+    );
     assert!((with_estimates - with_truth).abs() < 1.5, "{with_estimates:.2} vs {with_truth:.2}");
+    assert!((judged - with_estimates).abs() < 1.5, "{judged:.2} vs {with_estimates:.2}");
+}
+
+/// Every triangle split in four at its edge midpoints (a scanner samples more finely than the
+/// model it scans).
+fn subdivided(mesh: &Mesh) -> Mesh {
+    let mut positions = mesh.positions.clone();
+    let mut midpoints = std::collections::HashMap::new();
+    let mut middle = |a: u32, b: u32, positions: &mut Vec<[f32; 3]>| -> u32 {
+        *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            let (p, q) = (positions[a as usize], positions[b as usize]);
+            positions.push([0, 1, 2].map(|k| 0.5 * (p[k] + q[k])));
+            positions.len() as u32 - 1
+        })
+    };
+    let mut faces = Vec::new();
+    for &[a, b, c] in &mesh.faces {
+        let (ab, bc, ca) = (middle(a, b, &mut positions), middle(b, c, &mut positions), middle(c, a, &mut positions));
+        faces.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
+    }
+    Mesh { positions, normals: None, faces, vertex_properties: Vec::new() }
+}
+
+/// `mesh` with Gaussian noise of `sigma` on every coordinate.
+fn noisy(mesh: &Mesh, sigma: f64) -> Mesh {
+    let mut rng = rmvp_dataset::rng::Rng::for_pixel(7, 0, 0);
+    let positions = mesh.positions.iter().map(|p| p.map(|v| v + (sigma * rng.normal() as f64) as f32)).collect();
+    Mesh { positions, ..mesh.clone() }
+}
+
+/// The rotation by `angle` radians about `axis`.
+fn rotation(axis: &Vector3<f64>, angle: f64) -> nalgebra::Matrix3<f64> {
+    nalgebra::Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(*axis), angle).into_inner()
 }
 
 #[test]
@@ -274,6 +434,10 @@ fn each_step_refuses_bad_input_by_name_and_leaves_the_session_as_it_was() {
     assert_eq!(std::fs::read(plain.join("session.json")).unwrap(), manifest);
     assert!(!plain.join("poses.json").exists() && !out.exists());
     rmvp_dataset::session::SessionManifest::read(&plain).unwrap().verify(&plain).unwrap();
+
+    // A dataset of a session not posed.
+    let err = fails(&["dataset", "build", s(&plain), "-o", s(&tmp.path().join("dataset"))]);
+    assert!(err.contains("no camera poses (poses.json)") && err.contains("plain"), "{err}");
 
     // A damaged session file is named.
     std::fs::write(plain.join("session.json"), b"{ not json").unwrap();

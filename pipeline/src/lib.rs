@@ -5,6 +5,7 @@
 //! - [`ground_truth`]: normal, mask and depth maps of a mesh in every view of a scene;
 //! - [`build`]: datasets from posed, masked capture sessions (scan ground truth, environment
 //!   map from a [`panorama`]); [`publish`]: releases of datasets; [`verify`]: their checks;
+//! - [`export`]: datasets in nerfstudio's, COLMAP's and RMVP3D's layouts (and RMVP3D read);
 //! - [`evaluation_set`]: the reconstruction evaluation set (shapes, materials, held-out views);
 //! - [`demo`]: the built-in example end to end: simulate, process raw frames, build the
 //!   dataset, compare with the truth, reconstruct, evaluate ([`demo::DemoReport`]).
@@ -17,6 +18,7 @@ pub mod build;
 pub mod demo;
 pub mod error;
 pub mod evaluation_set;
+pub mod export;
 pub mod ground_truth;
 pub mod panorama;
 pub mod publish;

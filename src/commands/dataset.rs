@@ -8,6 +8,7 @@ use rmvp_dataset::layout::{convert_scene, read_scene, Layout};
 use rmvp_dataset::summary::SceneSummary;
 use rmvp_dataset::Mesh;
 use rmvp_pipeline::build::{build_dataset, BuildOptions, LengthUnit, PanoramaInput, ScanInput, TrainViews};
+use rmvp_pipeline::export::{export_scene, import_rmvp3d, ExportFormat};
 use rmvp_pipeline::ground_truth::write_ground_truth_maps;
 use rmvp_pipeline::publish::{publish, Archive, PublishOptions};
 use rmvp_pipeline::verify::verify;
@@ -25,6 +26,10 @@ pub enum Command {
     Publish(PublishArgs),
     /// Verify a release: checksums, views, the NeRSP layout, masks and cameras against the scan.
     Verify(VerifyArgs),
+    /// Export a scene for other tools: nerfstudio, COLMAP (text model) or RMVP3D's layout.
+    Export(ExportArgs),
+    /// Import an RMVP3D object folder as a scene (NeRSP layout or ours).
+    Import(ImportArgs),
     /// Summarise and validate a scene folder (NeRSP or rmvp layout).
     Info(InfoArgs),
     /// Convert a scene between the NeRSP and rmvp layouts, without loss.
@@ -93,6 +98,32 @@ pub struct PublishArgs {
     /// Also write the release as one archive beside it: tar or zip.
     #[arg(long, value_parser = str::parse::<Archive>)]
     archive: Option<Archive>,
+}
+
+/// Arguments of `rmvp dataset export`.
+#[derive(clap::Args)]
+pub struct ExportArgs {
+    /// Scene folder (either layout), e.g. a dataset's `rmvp/`.
+    scene: PathBuf,
+    /// nerfstudio, colmap or rmvp3d.
+    #[arg(long, value_parser = str::parse::<ExportFormat>)]
+    format: ExportFormat,
+    /// Output folder (new or empty).
+    #[arg(short, long)]
+    output: PathBuf,
+}
+
+/// Arguments of `rmvp dataset import`.
+#[derive(clap::Args)]
+pub struct ImportArgs {
+    /// An RMVP3D object folder (`cameras.npz`, `images_stokes/`, `masks/`).
+    source: PathBuf,
+    /// Scene folder to write (new or empty).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Layout to write.
+    #[arg(long, value_enum, default_value = "rmvp")]
+    to: Layout,
 }
 
 /// Arguments of `rmvp dataset verify`.
@@ -176,6 +207,22 @@ pub fn run(command: Command) -> Result<()> {
                 report.files,
                 report.views
             );
+            Ok(())
+        }
+        Command::Export(args) => {
+            let scene = read_scene(&args.scene)?;
+            export_scene(&scene, &args.output, args.format)?;
+            println!(
+                "{} views -> {}",
+                scene.views.iter().filter(|v| v.stokes.is_some()).count(),
+                args.output.display()
+            );
+            Ok(())
+        }
+        Command::Import(args) => {
+            let scene = import_rmvp3d(&args.source)?;
+            rmvp_dataset::layout::write_scene(&scene, &args.output, args.to)?;
+            println!("{} views -> {} ({} layout)", scene.views.len(), args.output.display(), args.to.name());
             Ok(())
         }
         Command::Info(args) => info(args),

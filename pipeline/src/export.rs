@@ -1,0 +1,93 @@
+//! A dataset in other tools' layouts (`rmvp dataset export`, `rmvp dataset import`):
+//!
+//! - `nerfstudio`: `transforms.json` (OpenGL camera-to-world, OpenCV intrinsics),
+//!   `images/<view>.png` (S0 previews), `masks/<view>.png`;
+//! - `colmap`: a text model `sparse/0/{cameras,images,points3D}.txt` (one `OPENCV` camera per
+//!   view, no points) and `images/<view>.png`;
+//! - `rmvp3d`: RMVP3D's release layout ([`rmvp_dataset::exchange::rmvp3d`]), read back by
+//!   [`import_rmvp3d`].
+//!
+//! Every view with Stokes is exported; cameras are the dataset's (lens distortion removed).
+
+use crate::{Error, Result};
+use rmvp_dataset::exchange::colmap::ColmapModel;
+use rmvp_dataset::exchange::nerfstudio::Transforms;
+use rmvp_dataset::exchange::rmvp3d;
+use rmvp_dataset::io::png;
+use rmvp_dataset::visualize::preview;
+use rmvp_dataset::{Camera, Scene};
+use std::path::Path;
+
+/// A layout to export to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ExportFormat {
+    /// nerfstudio's `transforms.json`.
+    Nerfstudio,
+    /// A COLMAP text model.
+    Colmap,
+    /// RMVP3D's release layout.
+    Rmvp3d,
+}
+
+impl std::str::FromStr for ExportFormat {
+    type Err = String;
+
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        match text {
+            "nerfstudio" => Ok(ExportFormat::Nerfstudio),
+            "colmap" => Ok(ExportFormat::Colmap),
+            "rmvp3d" => Ok(ExportFormat::Rmvp3d),
+            other => Err(format!("unknown format {other:?} (nerfstudio, colmap, rmvp3d)")),
+        }
+    }
+}
+
+/// Export the views of `scene` that have Stokes into `dir` (which must not exist or be empty).
+pub fn export_scene(scene: &Scene, dir: &Path, format: ExportFormat) -> Result<()> {
+    if dir.read_dir().is_ok_and(|mut d| d.next().is_some()) {
+        return Err(Error::Folder { path: dir.to_path_buf(), why: "not empty; export into a new folder".into() });
+    }
+    let mut views = scene.clone();
+    views.views.retain(|v| v.stokes.is_some());
+    let write_pictures = |masks: bool| -> Result<()> {
+        for view in &views.views {
+            let stokes = view.stokes.as_ref().expect("kept above");
+            let picture = view.preview.clone().unwrap_or_else(|| preview(&stokes.s0));
+            png::write_png_u8(&dir.join("images").join(format!("{}.png", view.name)), &picture)?;
+            if let (true, Some(mask)) = (masks, &view.mask) {
+                png::write_png_u8(&dir.join("masks").join(format!("{}.png", view.name)), mask)?;
+            }
+        }
+        Ok(())
+    };
+    match format {
+        ExportFormat::Nerfstudio => {
+            write_pictures(true)?;
+            let cameras: Vec<(String, Option<String>, Camera)> = views
+                .views
+                .iter()
+                .map(|v| {
+                    let mask = v.mask.as_ref().map(|_| format!("masks/{}.png", v.name));
+                    (format!("images/{}.png", v.name), mask, v.camera.clone())
+                })
+                .collect();
+            Transforms::from_cameras(&cameras).write(&dir.join("transforms.json"))?;
+        }
+        ExportFormat::Colmap => {
+            write_pictures(false)?;
+            let cameras: Vec<(String, Camera)> =
+                views.views.iter().map(|v| (format!("{}.png", v.name), v.camera.clone())).collect();
+            let sparse = dir.join("sparse/0");
+            std::fs::create_dir_all(&sparse).map_err(|e| rmvp_dataset::Error::io(&sparse, e))?;
+            ColmapModel::from_cameras(&cameras).write_text(&sparse)?;
+        }
+        ExportFormat::Rmvp3d => rmvp3d::write(&views, dir)?,
+    }
+    Ok(())
+}
+
+/// An RMVP3D object folder as a scene (every view a training view: choose a split with
+/// `rmvp dataset convert` or by name at reconstruction).
+pub fn import_rmvp3d(dir: &Path) -> Result<Scene> {
+    Ok(rmvp3d::read(dir)?)
+}
