@@ -1,6 +1,10 @@
 //! From a simulated lab to posed, masked views: the time of each stage on 24 views at
 //! 1224x1024 (COLMAP's own steps from its logs), and the pose accuracy of the ChArUco and
 //! COLMAP methods against the rendered truth as the views drop from 24 to 12 to 6.
+//! Then the dataset stage on the object session: `rmvp dataset build` with a laser scan (the
+//! true mesh in millimetres, moved) and a panorama, each stage's time from `build.json` (the
+//! reference reconstruction apart: the dense preset, or `RMVP_BENCH_REFERENCE_ITERS`
+//! iterations of it), then `publish` (with a tar archive) and `verify`.
 //! `cargo bench --bench lab` (part of `./run bench`). The three sessions (calibration, object,
 //! empty lab) are captured once through the simulated camera into `target/tmp/bench-lab` and
 //! reused; delete that folder to capture them again.
@@ -177,4 +181,51 @@ fn main() {
             );
         }
     }
+    dataset_stage(&root, &lab, &camera, &truth);
+}
+
+/// `rmvp dataset build`, `publish` and `verify` on the object session, timed.
+fn dataset_stage(root: &Path, lab: &Path, camera: &Path, truth: &SimulatedScene) {
+    let out = root.join("out");
+    rmvp(&["poses", s(lab), "--method", "charuco", "--camera", s(camera), "-o", s(&out.join("charuco.json")), BOARD[0], BOARD[1]]);
+    let scan = out.join("scan.ply");
+    let subject = truth.subject.clone().expect("the lab has a subject");
+    let turn = nalgebra::Rotation3::from_euler_angles(0.4, -1.1, 2.0).into_inner();
+    rmvp_align::Similarity { r: turn, t: nalgebra::Vector3::new(-250.0, 80.0, 1200.0), s: 1.0 }
+        .apply_to_mesh(&subject)
+        .write(&scan)
+        .expect("scan");
+    let pano = out.join("studio.exr");
+    rmvp_dataset::io::exr::write_exr(&pano, &rmvp_render::envmap::procedural_image(), &["R", "G", "B"]).expect("panorama");
+    let (dataset, release) = (out.join("dataset"), out.join("release"));
+    for dir in [&dataset, &release] {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+    let _ = std::fs::remove_file(out.join("release.tar"));
+    let iterations = std::env::var("RMVP_BENCH_REFERENCE_ITERS").ok();
+    let mut args = vec!["dataset", "build", s(lab), "-o", s(&dataset), "--camera", s(camera)];
+    args.extend(["--scan", s(&scan), "--env", s(&pano)]);
+    if let Some(n) = &iterations {
+        args.extend(["--reference-iters", n.as_str()]);
+    }
+    let total = rmvp(&args);
+    let record = rmvp_pipeline::build::BuildRecord::read(&dataset).expect("build record");
+    let reference = record.reference.as_ref().expect("reference");
+    println!(
+        "dataset stage ({VIEWS} views, reference: {:?} preset, {} iterations, mesh at {}^3):",
+        reference.preset, reference.iterations, reference.mesh_resolution
+    );
+    for stage in &record.stages {
+        println!("  build {:<13}                    {:7.1} s", stage.name, stage.seconds);
+    }
+    println!("  build in all                            {total:7.1} s");
+    let t = rmvp(&["dataset", "publish", s(&dataset), "-o", s(&release), "--archive", "tar"]);
+    println!("  publish (copy, contact sheets, SHA-256, tar) {t:7.1} s");
+    let t = rmvp(&["dataset", "verify", s(&release)]);
+    println!("  verify                                  {t:7.1} s");
+    let scan = record.scan.as_ref().expect("scan");
+    println!(
+        "  scan aligned: scale {:.5}, median distance {:.4} mm; masks against its silhouettes: IoU mean {:.4}",
+        scan.alignment.transform.s, scan.alignment.median_distance, scan.mask_iou_mean
+    );
 }

@@ -42,7 +42,8 @@ enum Command {
     Demosaic(demosaic::Args),
     /// Four polarizer images (0, 45, 90, 135 degrees) to Stokes, AoP and DoP.
     Stokes(stokes::Args),
-    /// Scene folders: summarise and validate, convert between layouts, ground-truth maps.
+    /// Datasets: build from a session, publish, verify, export; scene folders: summarise,
+    /// convert between layouts, ground-truth maps.
     #[command(subcommand)]
     Dataset(dataset::Command),
     /// Reconstruct a scene with NeRSP: mesh, normal maps, re-rendered Stokes.

@@ -243,7 +243,7 @@ fn a_lab_session_becomes_posed_masked_views() {
     assert!(err.contains("unfinished build") && err.contains("--resume"), "{err}");
     // The right scan, resumed: the reference is not trained again.
     scan.write(&scan_file).unwrap();
-    build(&["--resume"], ok);
+    eprintln!("{}", build(&["--resume"], ok));
     let record = BuildRecord::read(&dataset).unwrap();
     assert!(record.complete);
     let log = std::fs::read_to_string(dataset.join("work/reference/log.jsonl")).unwrap();
@@ -256,14 +256,14 @@ fn a_lab_session_becomes_posed_masked_views() {
     let release = tmp.path().join("release");
     ok(&["dataset", "publish", s(&dataset), "-o", s(&release), "--archive", "tar"]);
     let verified = ok(&["dataset", "verify", s(&release)]);
-    assert!(verified.contains("verified (1 objects: spot; ") && verified.contains("24 views"), "{verified}");
+    assert!(verified.contains("verified (1 object(s): lab; ") && verified.contains("24 views"), "{verified}");
     let datasheet = std::fs::read_to_string(release.join("README.md")).unwrap();
     assert!(datasheet.contains("CC-BY-4.0") && datasheet.contains("charuco") && datasheet.contains("scan.ply"));
-    assert!(tmp.path().join("release.tar").is_file() && release.join("spot/contact/normals.png").is_file());
+    assert!(tmp.path().join("release.tar").is_file() && release.join("lab/contact/normals.png").is_file());
 
     // The release's ground truth against the simulator's: the mesh within 0.2 % of the object's
     // size, the normals within a degree (median), the environment map as the renderer's.
-    let published = read_scene(&release.join("spot/nersp")).unwrap();
+    let published = read_scene(&release.join("lab/nersp")).unwrap();
     let gt_mesh = published.mesh.clone().unwrap();
     let size = 2.0 * lab_setup().object_radius_mm;
     let chamfer = surface_metrics(&gt_mesh, &subject, &SurfaceOptions::default()).unwrap().chamfer;
@@ -292,13 +292,13 @@ fn a_lab_session_becomes_posed_masked_views() {
     assert!(worst < 1e-5, "environment map differs by {worst}");
 
     // A damaged file in the release is named.
-    let victim = release.join("spot/nersp/s0/0003.npy");
+    let victim = release.join("lab/nersp/s0/0003.npy");
     let original = std::fs::read(&victim).unwrap();
     let mut damaged = original.clone();
     *damaged.last_mut().unwrap() ^= 1;
     std::fs::write(&victim, &damaged).unwrap();
     let err = fails(&["dataset", "verify", s(&release)]);
-    assert!(err.contains("spot/nersp/s0/0003.npy: checksum differs"), "{err}");
+    assert!(err.contains("lab/nersp/s0/0003.npy: checksum differs"), "{err}");
     std::fs::write(&victim, &original).unwrap();
 
     // NeRSP on the release's six views (`rmvp recon`, estimated poses and masks, one thread)
@@ -325,7 +325,7 @@ fn a_lab_session_becomes_posed_masked_views() {
                 "--threads",
                 "1",
                 "recon",
-                s(&release.join("spot/nersp")),
+                s(&release.join("lab/nersp")),
                 "-o",
                 s(&recon),
                 "--iters",

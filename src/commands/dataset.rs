@@ -200,7 +200,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Verify(args) => {
             let report = verify(&args.release)?;
             println!(
-                "{}: verified ({} objects: {}; {} files, {} views)",
+                "{}: verified ({} object(s): {}; {} files, {} views)",
                 args.release.display(),
                 report.objects.len(),
                 report.objects.join(", "),
