@@ -187,7 +187,18 @@ fn main() {
 /// `rmvp dataset build`, `publish` and `verify` on the object session, timed.
 fn dataset_stage(root: &Path, lab: &Path, camera: &Path, truth: &SimulatedScene) {
     let out = root.join("out");
-    rmvp(&["poses", s(lab), "--method", "charuco", "--camera", s(camera), "-o", s(&out.join("charuco.json")), BOARD[0], BOARD[1]]);
+    rmvp(&[
+        "poses",
+        s(lab),
+        "--method",
+        "charuco",
+        "--camera",
+        s(camera),
+        "-o",
+        s(&out.join("charuco.json")),
+        BOARD[0],
+        BOARD[1],
+    ]);
     let scan = out.join("scan.ply");
     let subject = truth.subject.clone().expect("the lab has a subject");
     let turn = nalgebra::Rotation3::from_euler_angles(0.4, -1.1, 2.0).into_inner();
@@ -196,7 +207,8 @@ fn dataset_stage(root: &Path, lab: &Path, camera: &Path, truth: &SimulatedScene)
         .write(&scan)
         .expect("scan");
     let pano = out.join("studio.exr");
-    rmvp_dataset::io::exr::write_exr(&pano, &rmvp_render::envmap::procedural_image(), &["R", "G", "B"]).expect("panorama");
+    rmvp_dataset::io::exr::write_exr(&pano, &rmvp_render::envmap::procedural_image(), &["R", "G", "B"])
+        .expect("panorama");
     let (dataset, release) = (out.join("dataset"), out.join("release"));
     for dir in [&dataset, &release] {
         let _ = std::fs::remove_dir_all(dir);
