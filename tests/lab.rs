@@ -21,6 +21,7 @@ use rmvp_dataset::io::png;
 use rmvp_dataset::layout::read_scene;
 use rmvp_dataset::{Camera, Mesh, Scene};
 use rmvp_pipeline::build::BuildRecord;
+use rmvp_pipeline::ground_truth::mask_iou;
 use rmvp_recon::extract::extract_mesh;
 use rmvp_recon::model::Preset;
 use rmvp_recon::train::{TrainConfig, Trainer};
@@ -109,18 +110,11 @@ fn a_lab_session_becomes_posed_masked_views() {
 
     // Poses from the board: the world is the board frame, as the simulation's.
     let charuco_file = tmp.path().join("charuco.json");
-    ok(&[
-        "poses",
-        s(&lab),
-        "--method",
-        "charuco",
-        "--camera",
-        s(&camera_file),
-        "-o",
-        s(&charuco_file),
-        BOARD[0],
-        BOARD[1],
-    ]);
+    let charuco_poses = || {
+        let args = ["poses", s(&lab), "--method", "charuco", "--camera", s(&camera_file), "-o", s(&charuco_file)];
+        ok(&[&args[..], &BOARD[..]].concat())
+    };
+    charuco_poses();
     let charuco = PoseSet::read(&charuco_file).unwrap();
     assert_eq!((charuco.views.len(), charuco.failed.len()), (24, 0));
     // Every camera is this far from the object.
@@ -157,12 +151,7 @@ fn a_lab_session_becomes_posed_masked_views() {
     let ious: Vec<f64> = (0..24)
         .map(|v| {
             let (want, got) = (truth.geometry(v).mask, png::read_png_u8(&masks.join(format!("{v:03}.png"))).unwrap());
-            let (mut inter, mut union) = (0usize, 0usize);
-            for (a, b) in want.data().iter().zip(got.data()) {
-                inter += usize::from(*a > 127 && *b > 127);
-                union += usize::from(*a > 127 || *b > 127);
-            }
-            inter as f64 / union as f64
+            mask_iou(&want, &got)
         })
         .collect();
     let mean_iou = ious.iter().sum::<f64>() / ious.len() as f64;
@@ -204,18 +193,7 @@ fn a_lab_session_becomes_posed_masked_views() {
     // scanner's accuracy, its normals recomputed, turned and moved; a midpoint subdivision would
     // put new vertices on the flat facets, 0.76 deg (median) off the true shading normals alone)
     // and the simulator's environment as a panorama; built, published, verified.
-    ok(&[
-        "poses",
-        s(&lab),
-        "--method",
-        "charuco",
-        "--camera",
-        s(&camera_file),
-        "-o",
-        s(&charuco_file),
-        BOARD[0],
-        BOARD[1],
-    ]);
+    charuco_poses();
     let subject = truth.subject.clone().unwrap();
     let scan_file = tmp.path().join("scan.ply");
     let placement =

@@ -284,15 +284,59 @@ impl SessionManifest {
 impl FileRecord {
     /// Size and SHA-256 of `DIR/relative`.
     pub fn of(dir: &Path, relative: &str) -> Result<Self> {
-        let path = dir.join(relative);
-        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
-        Ok(Self { path: relative.to_string(), bytes: bytes.len() as u64, sha256: sha256_hex(&bytes) })
+        let (sha256, bytes) = sha256_file(&dir.join(relative))?;
+        Ok(Self { path: relative.to_string(), bytes, sha256 })
     }
 }
 
 /// SHA-256 of `bytes` in hexadecimal.
 pub fn sha256_hex(bytes: &[u8]) -> String {
-    Sha256::digest(bytes).iter().map(|b| format!("{b:02x}")).collect()
+    hex(&Sha256::digest(bytes))
+}
+
+/// SHA-256 (hexadecimal) and size of the file at `path`, read in 1 MiB pieces.
+pub fn sha256_file(path: &Path) -> Result<(String, u64)> {
+    use std::io::Read;
+    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let (mut hasher, mut buffer, mut size) = (Sha256::new(), vec![0u8; 1 << 20], 0u64);
+    loop {
+        let n = file.read(&mut buffer).map_err(|e| Error::io(path, e))?;
+        if n == 0 {
+            break;
+        }
+        hasher.update(&buffer[..n]);
+        size += n as u64;
+    }
+    Ok((hex(&hasher.finalize()), size))
+}
+
+fn hex(digest: &[u8]) -> String {
+    digest.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Every file under `dir`, as `/`-separated paths relative to it, in path order (component by
+/// component, as `Path` compares).
+pub fn files_under(dir: &Path) -> Result<Vec<String>> {
+    let mut files = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).map_err(|e| Error::io(&d, e))? {
+            let path = entry.map_err(|e| Error::io(&d, e))?.path();
+            if path.is_dir() {
+                stack.push(path);
+            } else {
+                files.push(path);
+            }
+        }
+    }
+    files.sort();
+    Ok(files
+        .iter()
+        .map(|p| {
+            let relative = p.strip_prefix(dir).expect("under dir");
+            relative.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/")
+        })
+        .collect())
 }
 
 /// The current time, UTC, RFC 3339 with seconds.

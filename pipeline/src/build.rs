@@ -24,6 +24,7 @@
 //! DATASET/work/scan/        alignment.json, aligned.ply (the scan in the world frame)
 //! ```
 
+use crate::ground_truth::set_ground_truth;
 use crate::panorama::{read_panorama, to_world, world_to_panorama};
 use crate::{Error, Result};
 #[cfg(test)]
@@ -43,11 +44,9 @@ use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::layout::{write_scene, Layout};
 use rmvp_dataset::progress::progress_bar;
 use rmvp_dataset::session::SessionManifest;
-use rmvp_dataset::{Camera, Image, Mesh, Scene, Split};
+use rmvp_dataset::{Camera, Mesh, Split};
 use rmvp_recon::model::Preset;
 use rmvp_recon::reconstruct::{reconstruct, Options as ReconOptions, MESH};
-use rmvp_render::pbrdf::{Interface, Lobes};
-use rmvp_render::{geometry_maps, Object};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -413,20 +412,6 @@ fn start(options: &BuildOptions, inputs: &BuildInputs) -> Result<Option<BuildRec
     Ok(None)
 }
 
-/// Intersection over union of two masks (> 127 is inside).
-pub fn mask_iou(a: &Image<u8>, b: &Image<u8>) -> f64 {
-    let (mut inter, mut union) = (0usize, 0usize);
-    for (x, y) in a.data().iter().zip(b.data()) {
-        inter += usize::from(*x > 127 && *y > 127);
-        union += usize::from(*x > 127 || *y > 127);
-    }
-    if union == 0 {
-        1.0
-    } else {
-        inter as f64 / union as f64
-    }
-}
-
 /// Build the dataset of `options` (or continue it) and return its record.
 pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
     let session = &options.session;
@@ -561,7 +546,7 @@ pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
         // 4. Ground truth from the aligned scan (ray casting: seconds, done again on resume).
         let clock = Instant::now();
         let aligned = Mesh::read(&scan_dir.join(ALIGNED_MESH))?;
-        let ious = ground_truth(&mut scene, &aligned)?;
+        let ious = set_ground_truth(&mut scene, &aligned)?;
         let summary = record.scan.as_mut().expect("scan stage done");
         summary.mask_iou_mean = ious.iter().map(|(iou, _)| iou).sum::<f64>() / ious.len().max(1) as f64;
         summary.mask_iou_min = ious.iter().cloned().min_by(|a, b| a.0.total_cmp(&b.0)).unwrap_or((1.0, String::new()));
@@ -666,25 +651,6 @@ pub fn align_scan(scan: &ScanInput, reference: &Mesh, world_mm: bool, dir: &Path
         mask_iou_mean: 0.0,
         mask_iou_min: (0.0, String::new()),
     })
-}
-
-/// Normals and depth of `mesh` in every view of `scene`, the mesh as the scene's; returns each
-/// view's IoU of its captured mask with the mesh's silhouette.
-fn ground_truth(scene: &mut Scene, mesh: &Mesh) -> Result<Vec<(f64, String)>> {
-    let object = Object::new(mesh, Interface::Dielectric(1.5), Lobes::Plastic)?;
-    let ious = scene
-        .views
-        .iter_mut()
-        .map(|view| {
-            let maps = geometry_maps(&object, &view.camera);
-            let iou = view.mask.as_ref().map_or(0.0, |m| mask_iou(m, &maps.mask));
-            view.normals = Some(maps.normals);
-            view.depth = Some(maps.depth);
-            (iou, view.name.clone())
-        })
-        .collect();
-    scene.mesh = Some(mesh.clone());
-    Ok(ious)
 }
 
 /// The folder of a built dataset in `layout`.

@@ -18,10 +18,10 @@ use crate::{Error, Result};
 use rmvp_dataset::io::{png, write_bytes_atomically};
 use rmvp_dataset::layout::{read_scene, Layout};
 use rmvp_dataset::progress::progress_bar;
+use rmvp_dataset::session::{files_under, sha256_file};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, downsample, normal_picture, preview};
 use rmvp_dataset::{Image, Scene};
 use std::fmt::Write as _;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// The checksum file of a release.
@@ -134,7 +134,7 @@ pub fn publish(options: &PublishOptions) -> Result<Release> {
     }
     let datasheet = datasheet(options, &objects);
     write_bytes_atomically(&partial.join(DATASHEET), datasheet.as_bytes())?;
-    let files = list_files(&partial)?;
+    let files = files_under(&partial)?;
     let bar = progress_bar(options.progress, files.len() as u64, "checksums");
     let mut sums = String::new();
     let mut bytes = 0;
@@ -178,48 +178,10 @@ fn copy_file(from: &Path, to: &Path) -> Result<()> {
 }
 
 fn copy_tree(from: &Path, to: &Path) -> Result<()> {
-    for file in list_files(from)? {
+    for file in files_under(from)? {
         copy_file(&from.join(&file), &to.join(&file))?;
     }
     Ok(())
-}
-
-/// Every file under `dir`, as `/`-separated relative paths, sorted.
-pub fn list_files(dir: &Path) -> Result<Vec<String>> {
-    fn walk(dir: &Path, prefix: &str, out: &mut Vec<String>) -> Result<()> {
-        let entries = std::fs::read_dir(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
-        for entry in entries {
-            let entry = entry.map_err(|e| rmvp_dataset::Error::io(dir, e))?;
-            let name = entry.file_name().to_string_lossy().into_owned();
-            let relative = if prefix.is_empty() { name } else { format!("{prefix}/{name}") };
-            if entry.path().is_dir() {
-                walk(&entry.path(), &relative, out)?;
-            } else {
-                out.push(relative);
-            }
-        }
-        Ok(())
-    }
-    let mut files = Vec::new();
-    walk(dir, "", &mut files)?;
-    files.sort();
-    Ok(files)
-}
-
-/// SHA-256 (hexadecimal) and size of a file, streamed.
-pub fn sha256_file(path: &Path) -> Result<(String, u64)> {
-    use sha2::{Digest, Sha256};
-    let mut file = std::fs::File::open(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
-    let (mut hasher, mut buffer, mut size) = (Sha256::new(), vec![0u8; 1 << 20], 0u64);
-    loop {
-        let n = file.read(&mut buffer).map_err(|e| rmvp_dataset::Error::io(path, e))?;
-        if n == 0 {
-            break;
-        }
-        hasher.update(&buffer[..n]);
-        size += n as u64;
-    }
-    Ok((hasher.finalize().iter().map(|b| format!("{b:02x}")).collect(), size))
 }
 
 /// S0 previews, AoP x DoP and ground-truth normals of every view (training views first).
@@ -256,7 +218,7 @@ fn write_archive(release: &Path, kind: Archive) -> Result<PathBuf> {
     };
     let path = sibling(release, ext);
     let root = release.file_name().unwrap_or_default().to_string_lossy().into_owned();
-    let files = list_files(release)?;
+    let files = files_under(release)?;
     rmvp_dataset::io::write_atomically(&path, |writer| {
         match kind {
             Archive::Tar => {

@@ -10,12 +10,14 @@
 //!   [`MIN_MASK_IOU`]), and the scan's vertices projected into each view inside its mask
 //!   (at least [`MIN_INSIDE`] of them, within [`MASK_SLACK_PX`]): cameras and scan agree.
 
-use crate::build::{mask_iou, BuildRecord, BUILD_FILE};
-use crate::publish::{list_files, sha256_file, CHECKSUMS};
+use crate::build::{BuildRecord, BUILD_FILE};
+use crate::ground_truth::mask_iou;
+use crate::publish::CHECKSUMS;
 use crate::{Error, Result};
 use nalgebra::Point3;
 use rmvp_dataset::io::{npy, png};
 use rmvp_dataset::layout::{nersp, read_scene, Layout};
+use rmvp_dataset::session::{files_under, sha256_file};
 use rmvp_dataset::{Image, Scene};
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -65,7 +67,7 @@ pub fn verify(release: &Path) -> Result<Verification> {
             Err(_) => faults.push(format!("{file}: listed in {CHECKSUMS} but missing")),
         }
     }
-    for file in list_files(release)? {
+    for file in files_under(release)? {
         if file != CHECKSUMS && !names.contains(&file) {
             faults.push(format!("{file}: not listed in {CHECKSUMS}"));
         }

@@ -508,23 +508,11 @@ fn write_views(
 
 /// Every file under `folder`, with size and checksum, paths relative to `root`, sorted.
 fn list_files(root: &Path, folder: &Path) -> Result<Vec<FileRecord>> {
-    let mut paths = Vec::new();
-    let mut stack = vec![folder.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for entry in std::fs::read_dir(&d).map_err(|e| rmvp_dataset::Error::io(&d, e))? {
-            let path = entry.map_err(|e| rmvp_dataset::Error::io(&d, e))?.path();
-            if path.is_dir() {
-                stack.push(path);
-            } else {
-                paths.push(path);
-            }
-        }
-    }
-    paths.sort();
-    paths
+    let prefix = folder.strip_prefix(root).expect("under root").to_string_lossy().into_owned();
+    rmvp_dataset::session::files_under(folder)?
         .iter()
-        .map(|p| {
-            let relative = p.strip_prefix(root).expect("under root").to_string_lossy().into_owned();
+        .map(|file| {
+            let relative = if prefix.is_empty() { file.clone() } else { format!("{prefix}/{file}") };
             Ok(FileRecord::of(root, &relative)?)
         })
         .collect()
