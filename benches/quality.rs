@@ -14,6 +14,7 @@ use rmvp_dataset::{Mesh, Split};
 use rmvp_pipeline::evaluation_set::{scene, CaptureOptions, SCENES};
 use rmvp_recon::reconstruct::{reconstruct, Options, MESH};
 use std::io::Write;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -113,8 +114,11 @@ fn main() {
             let _ = std::fs::remove_dir_all(&out);
             let start = Instant::now();
             let mut trained = 0.0;
-            let trainer = reconstruct(&data, &out, &options, |_, _| trained = start.elapsed().as_secs_f64())
-                .unwrap_or_else(|e| panic!("{name} {variant}: {e}"));
+            let trainer = reconstruct(&data, &out, &options, |_, _| {
+                trained = start.elapsed().as_secs_f64();
+                ControlFlow::Continue(())
+            })
+            .unwrap_or_else(|e| panic!("{name} {variant}: {e}"));
             let total = start.elapsed().as_secs_f64();
             let pred = Mesh::read(&out.join(MESH)).expect("reconstructed mesh");
             let evaluation = evaluate(&pred, &gt, Some(&data), &SurfaceOptions::default()).expect("evaluation");

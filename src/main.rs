@@ -50,6 +50,10 @@ enum Command {
     Recon(recon::Args),
     /// Align a scan onto a target mesh by a similarity (ICP with scale).
     Align(align::Args),
+    /// Batches of reconstructions (datasets x variants x seeds) on this machine or on Slurm,
+    /// with their results tabulated.
+    #[command(subcommand)]
+    Batch(batch::Command),
     /// Compare a predicted mesh with the ground truth: Chamfer, F-score, normal error per view.
     Eval(eval::Args),
     /// `rmvp dataset info`.
@@ -84,6 +88,7 @@ fn main() {
         Command::Recon(args) => recon::run(args),
         Command::Align(args) => align::run(args),
         Command::Eval(args) => eval::run(args),
+        Command::Batch(command) => batch::run(command),
         Command::Info(args) => dataset::run(dataset::Command::Info(args)),
         Command::Convert(args) => dataset::run(dataset::Command::Convert(args)),
         Command::RenderNormals(args) => dataset::run(dataset::Command::RenderNormals(args)),

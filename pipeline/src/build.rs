@@ -48,6 +48,7 @@ use rmvp_dataset::{Camera, Mesh, Split};
 use rmvp_recon::model::Preset;
 use rmvp_recon::reconstruct::{reconstruct, Options as ReconOptions, MESH};
 use serde::{Deserialize, Serialize};
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -523,7 +524,8 @@ pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
             let recon = ReconOptions { resume: options.resume, ..options.reference.clone() };
             let bar = progress_bar(options.progress, reference_iterations as u64, "reference");
             reconstruct(&everything, &reference_dir, &recon, |report, _| {
-                bar.set_position(report.iteration as u64 + 1)
+                bar.set_position(report.iteration as u64 + 1);
+                ControlFlow::Continue(())
             })?;
             bar.finish();
             record.reference = Some(ReferenceSummary {

@@ -26,6 +26,7 @@ use rmvp_recon::model::Preset;
 use rmvp_recon::reconstruct::{reconstruct, Options as ReconOptions, MESH};
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
 /// What the demo runs; [`DemoOptions::default`] holds every default of `rmvp demo`.
@@ -213,7 +214,10 @@ pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result
     };
     let bar = progress_bar(options.progress, options.recon_iterations as u64, "recon");
     let started = std::time::Instant::now();
-    reconstruct(&reread, &recon_dir, &recon_options, |_, trainer| bar.set_position(trainer.iteration as u64))?;
+    reconstruct(&reread, &recon_dir, &recon_options, |_, trainer| {
+        bar.set_position(trainer.iteration as u64);
+        ControlFlow::Continue(())
+    })?;
     bar.finish();
     let seconds = started.elapsed().as_secs_f64();
     let predicted = Mesh::read(&recon_dir.join(MESH))?;

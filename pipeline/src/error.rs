@@ -91,4 +91,28 @@ pub enum Error {
         /// One line per fault.
         faults: Vec<String>,
     },
+    /// A batch plan that cannot run: every fault is found before anything runs or is submitted.
+    #[error("{}{}: {why}", path.display(), line.map_or(String::new(), |l| format!(" line {l}")))]
+    Plan {
+        /// The plan file.
+        path: std::path::PathBuf,
+        /// The line at fault, when there is one.
+        line: Option<usize>,
+        /// What is wrong.
+        why: String,
+    },
+    /// A Slurm command that failed.
+    #[error("{command}: {why}")]
+    Slurm {
+        /// The command line.
+        command: String,
+        /// What it said.
+        why: String,
+    },
+    /// A Slurm command that is not installed.
+    #[error("{command}: not found (Slurm's commands are not installed or not on PATH)")]
+    SlurmMissing {
+        /// The command.
+        command: String,
+    },
 }

@@ -7,6 +7,8 @@
 //!   map from a [`panorama`]); [`publish`]: releases of datasets; [`verify`]: their checks;
 //! - [`export`]: datasets in nerfstudio's, COLMAP's and RMVP3D's layouts (and RMVP3D read);
 //! - [`evaluation_set`]: the reconstruction evaluation set (shapes, materials, held-out views);
+//! - [`batch`]: reconstructions and evaluations of datasets x variants x seeds, on this
+//!   machine or as a Slurm job array, gathered into a table;
 //! - [`demo`]: the built-in example end to end: simulate, process raw frames, build the
 //!   dataset, compare with the truth, reconstruct, evaluate ([`demo::DemoReport`]).
 //!
@@ -14,6 +16,7 @@
 
 #![warn(missing_docs)]
 
+pub mod batch;
 pub mod build;
 pub mod demo;
 pub mod error;

@@ -12,6 +12,7 @@ use rmvp_dataset::io::{exr, png};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, normal_picture, preview};
 use rmvp_dataset::{Scene, Split};
 use std::io::Write;
+use std::ops::ControlFlow;
 use std::path::Path;
 
 /// What the user chose; [`Options::default`] holds every default of `rmvp recon`.
@@ -83,13 +84,15 @@ pub const LOG: &str = "log.jsonl";
 /// The extracted surface, world frame.
 pub const MESH: &str = "mesh.ply";
 
-/// Train on `scene` into `out`, calling `on_step` after every iteration, then write the results
-/// (unless `stop_after` ended the session early: then the returned trainer has not finished).
+/// Train on `scene` into `out`, calling `on_step` after every iteration, then write the results.
+/// The session ends early, checkpointed and without results (the returned trainer has not
+/// finished; continue with `resume`), after `stop_after` iterations or when `on_step` returns
+/// [`ControlFlow::Break`] (a signal, a time limit).
 pub fn reconstruct(
     scene: &Scene,
     out: &Path,
     options: &Options,
-    mut on_step: impl FnMut(&StepReport, &Trainer),
+    mut on_step: impl FnMut(&StepReport, &Trainer) -> ControlFlow<()>,
 ) -> Result<Trainer> {
     if !options.photometric && !options.geometric {
         return Err(Error::BothCuesOff);
@@ -133,7 +136,11 @@ pub fn reconstruct(
             log.sync_data().map_err(|e| Error::io(&log_path, e))?;
             trainer.save_checkpoint(&checkpoint)?;
         }
-        on_step(&report, &trainer);
+        if on_step(&report, &trainer).is_break() && trainer.iteration < trainer.config.iterations {
+            log.sync_data().map_err(|e| Error::io(&log_path, e))?;
+            trainer.save_checkpoint(&checkpoint)?;
+            return Ok(trainer);
+        }
     }
     if options.view_outputs {
         write_results(&trainer, scene, out, options.mesh_resolution)?;

@@ -15,6 +15,7 @@ use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::rig::{framing_distance, look_at, rig_intrinsics, Rig};
 use rmvp_render::shapes::icosphere;
 use rmvp_render::{geometry_maps, render_view, EnvMap, Object, Settings};
+use std::ops::ControlFlow;
 
 const RADIUS: f32 = 0.6;
 
@@ -178,7 +179,10 @@ fn unusable_inputs_are_refused_by_kind() {
     let mut scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
     let dir = tempfile::tempdir().unwrap();
     let both_off = Options { photometric: false, geometric: false, ..Options::default() };
-    assert!(matches!(reconstruct(&scene, dir.path(), &both_off, |_, _| {}), Err(Error::BothCuesOff)));
+    assert!(matches!(
+        reconstruct(&scene, dir.path(), &both_off, |_, _| ControlFlow::Continue(())),
+        Err(Error::BothCuesOff)
+    ));
     scene.views[1].mask = None;
     let err = TrainingSet::from_scene(&scene, 8).err().unwrap();
     assert!(matches!(&err, Error::MissingInput { view, what: "mask" } if view == "001"), "{err}");

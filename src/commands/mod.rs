@@ -2,6 +2,7 @@
 //! that turn a library error into the command to run next.
 
 pub mod align;
+pub mod batch;
 pub mod board;
 pub mod calibrate;
 pub mod capture;
@@ -41,6 +42,12 @@ pub fn progress(len: u64, what: &str) -> ProgressBar {
 /// What the user can do next about `error`, in terms of this command line.
 pub fn hint(error: &anyhow::Error) -> Option<&'static str> {
     use rmvp_capture::Error as Capture;
+    use rmvp_pipeline::Error as Pipeline;
+    if let Some(Pipeline::SlurmMissing { .. }) = error.chain().find_map(|e| e.downcast_ref::<Pipeline>()) {
+        return Some(
+            "hint: without Slurm, run the plan on this machine: rmvp batch run FILE -o DIR --local [--jobs N]",
+        );
+    }
     let capture = error.chain().find_map(|e| e.downcast_ref::<Capture>())?;
     match capture {
         Capture::Session { .. } | Capture::DiskFull { .. } => {

@@ -5,6 +5,7 @@ use anyhow::{Context, Result};
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::model::Preset;
 use rmvp_recon::reconstruct::{reconstruct, Options};
+use std::ops::ControlFlow;
 use std::path::PathBuf;
 
 /// Arguments of `rmvp recon`.
@@ -80,6 +81,7 @@ pub fn run(args: Args) -> Result<()> {
             }
             None => {}
         }
+        ControlFlow::Continue(())
     })
     .with_context(|| format!("reconstructing {}", args.scene.display()))?;
     bar.finish();
