@@ -13,6 +13,7 @@ packages=(
   libusb-1.0-0-dev   # required by aravis-0.8.pc
   chromium           # headless browser for the live-preview page test
   colmap             # camera poses by structure from motion (rmvp poses --method colmap), CPU SIFT
+  slurmctld slurmd slurm-client munge # rmvp batch --slurm; its test starts a one-node cluster
 )
 if [ "${1:-}" = bench ]; then
   packages+=(python3-numpy python3-opencv) # same OpenCV 4.6 as the Rust side
