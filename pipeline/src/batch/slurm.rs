@@ -258,9 +258,8 @@ pub enum StateSource {
 /// Slurm's state of each task index of a submission (the latest array holding an index wins).
 pub fn scheduler_states(submission: &Submission) -> Result<(StateSource, BTreeMap<usize, String>)> {
     let ids: Vec<&str> = submission.arrays.iter().map(|a| a.job_id.as_str()).collect();
-    let mut states = BTreeMap::new();
     if ids.is_empty() {
-        return Ok((StateSource::Squeue, states));
+        return Ok((StateSource::Squeue, BTreeMap::new()));
     }
     let jobs = ids.join(",");
     let sacct = slurm_command(
@@ -276,7 +275,13 @@ pub fn scheduler_states(submission: &Submission) -> Result<(StateSource, BTreeMa
         }
         Err(e) => return Err(e),
     };
-    // Later arrays (resubmissions) override earlier ones.
+    Ok((source, parse_states(&text, submission)))
+}
+
+/// Task states from `JOBID|STATE` lines (sacct `--parsable2`, squeue `-o %i|%T`) of the
+/// submission's arrays; later arrays (resubmissions) override earlier ones.
+fn parse_states(text: &str, submission: &Submission) -> BTreeMap<usize, String> {
+    let mut states = BTreeMap::new();
     for array in &submission.arrays {
         for line in text.lines() {
             let mut fields = line.split('|');
@@ -291,7 +296,7 @@ pub fn scheduler_states(submission: &Submission) -> Result<(StateSource, BTreeMa
             }
         }
     }
-    Ok((source, states))
+    states
 }
 
 /// Whether a Slurm state means the task is still to run or running.
@@ -371,6 +376,23 @@ mod tests {
         assert_eq!(array_indices("123_4"), vec![4]);
         assert_eq!(array_indices("123_[1-3,5,7-9%2]"), vec![1, 2, 3, 5, 7, 8, 9]);
         assert_eq!(array_indices("123"), Vec::<usize>::new());
+    }
+
+    #[test]
+    fn states_from_sacct_lines_later_arrays_winning() {
+        let job = |id: &str, indices: Vec<usize>| ArrayJob { job_id: id.into(), gather_job_id: "0".into(), indices };
+        let submission = Submission {
+            options: SlurmOptions::default(),
+            program: "/opt/rmvp".into(),
+            arrays: vec![job("123", vec![0, 1, 2, 3]), job("130", vec![2, 3])],
+        };
+        // `sacct -X --parsable2 --noheader --format=JobID,State` as Slurm 22.05 prints it.
+        let text = "123_0|COMPLETED\n123_1|CANCELLED by 0\n123_2|FAILED\n123_3|FAILED\n1230_1|RUNNING\n\
+                    130_2|RUNNING\n130_[3%1]|PENDING\n131|PENDING\n";
+        let states = parse_states(text, &submission);
+        let words: Vec<(usize, &str)> = states.iter().map(|(i, s)| (*i, s.as_str())).collect();
+        assert_eq!(words, [(0, "COMPLETED"), (1, "CANCELLED"), (2, "RUNNING"), (3, "PENDING")]);
+        assert!(is_active("RUNNING") && !is_active("FAILED") && !is_active("CANCELLED"));
     }
 
     #[test]
