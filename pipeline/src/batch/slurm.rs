@@ -217,6 +217,8 @@ fn submit_array(dir: &Path, submission: &mut Submission, indices: &[usize]) -> R
 /// nothing is submitted, `None`). `program` is the `rmvp` the tasks run.
 pub fn submit(plan: &BatchPlan, dir: &Path, options: &SlurmOptions, program: &Path) -> Result<Option<ArrayJob>> {
     let dir = &std::path::absolute(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
+    // Earlier submissions count only for the same tasks: their indices name this plan's tasks.
+    let same_tasks = BatchPlan::load(dir).is_ok_and(|previous| previous.tasks == plan.tasks);
     plan.save(dir)?;
     let logs = dir.join(LOGS_FOLDER);
     std::fs::create_dir_all(&logs).map_err(|e| rmvp_dataset::Error::io(&logs, e))?;
@@ -230,10 +232,9 @@ pub fn submit(plan: &BatchPlan, dir: &Path, options: &SlurmOptions, program: &Pa
     if pending.is_empty() {
         return Ok(None);
     }
-    let mut submission = read_json::<Submission>(&dir.join(SUBMISSION_FILE), "a batch submission")
-        .unwrap_or(Submission { options: options.clone(), program: program.to_path_buf(), arrays: Vec::new() });
-    submission.options = options.clone();
-    submission.program = program.to_path_buf();
+    let earlier = read_json::<Submission>(&dir.join(SUBMISSION_FILE), "a batch submission").ok();
+    let arrays = earlier.filter(|_| same_tasks).map(|s| s.arrays).unwrap_or_default();
+    let mut submission = Submission { options: options.clone(), program: program.to_path_buf(), arrays };
     submit_array(dir, &mut submission, &pending).map(Some)
 }
 
