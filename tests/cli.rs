@@ -1,7 +1,6 @@
 //! End-to-end tests: the `rmvp` binary as users run it.
 
 use rmvp_align::{Alignment, Evaluation};
-use rmvp_capture::sensor::SensorRecord;
 use rmvp_dataset::summary::SceneSummary;
 use rmvp_pipeline::demo::DemoReport;
 use rmvp_testkit::fixture;
@@ -29,53 +28,63 @@ fn s(p: &Path) -> &str {
 }
 
 #[test]
-fn demo_simulates_captures_and_builds_a_valid_dataset() {
+fn demo_captures_builds_a_dataset_and_reconstructs_it() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("demo");
-    let stdout =
-        ok(&["demo", "-o", s(&out), "--res", "192x160", "--spp", "8", "--recon-iters", "20", "--mesh-res", "48"]);
+    let args = ["demo", "-o", s(&out), "--spp", "8", "--recon-iters", "20", "--mesh-res", "48", "--mesh-only"];
+    let stdout = ok(&args);
     assert!(stdout.contains("AoP error median"), "{stdout}");
     let report = DemoReport::read(&out.join("report.json")).unwrap();
-    assert_eq!(report.captured_dataset.views, 6);
-    // Captured from noisy raw frames of an 8-spp rendering: AoP within a few degrees where the
-    // light is polarized, S0 within a few percent.
-    assert!(report.aop_error_deg.median < 5.0 && report.aop_error_deg.pixels > 1000, "{report:?}");
+    // Captured through the simulated GenICam camera: full-sensor polarized raw frames.
+    assert_eq!((report.capture.views, report.capture.raw_size), (6, [2448, 2048]), "{report:?}");
+    assert_eq!(report.capture.pixel_format, "BayerRGPolarized12p");
+    assert!(report.capture.camera.contains("BFS-U3-51S5PC-C"), "{report:?}");
+    // Noisy frames of an 8-spp rendering against the noise-free rendering: AoP within a few
+    // degrees where the light is polarized, S0 within a few percent.
+    assert!(report.aop_error_deg.median < 5.0 && report.aop_error_deg.pixels > 10_000, "{report:?}");
     assert!(report.s0_rel_error.median < 0.1, "{report:?}");
     let sheet = rmvp_dataset::io::png::read_png_u8(&out.join("contact_sheet.png")).unwrap();
-    assert_eq!(sheet.size(), (4 * 196 + 4, 6 * 164 + 4));
-    let info = ok(&["dataset", "info", s(&out.join("captured"))]);
-    assert!(info.contains("6 (6 train, 0 eval)"), "{info}");
+    assert_eq!(sheet.size(), (4 * 248 + 4, 6 * 208 + 4));
+    // The dataset came from the session through `rmvp dataset build`: posed, masked, complete,
+    // in both layouts, its Stokes the session's own.
+    assert!(report.dataset.complete && report.dataset.train.len() == 6, "{report:?}");
+    let record = rmvp_pipeline::build::BuildRecord::read(&out.join("dataset")).unwrap();
+    assert!(record.complete && record.stages.iter().any(|s| s.name == "layouts"), "{record:?}");
+    for layout in ["nersp", "rmvp"] {
+        let info = ok(&["dataset", "info", s(&out.join("dataset").join(layout))]);
+        assert!(info.contains("6 (6 train, 0 eval)"), "{info}");
+    }
+    let session = out.join("session");
+    let manifest = rmvp_dataset::session::SessionManifest::read(&session).unwrap();
+    let stokes = rmvp_calib::pictures::read_view_stokes(&session, &manifest.views[3]).unwrap();
+    let s0 = rmvp_dataset::io::npy::read_npy::<f32>(&out.join("dataset/nersp/s0/0003.npy")).unwrap();
+    assert_eq!(stokes.s0.data(), &s0.data[..]);
     // The reconstruction stage ran and was evaluated (20 iterations: a coarse blob, not a shape).
     assert_eq!(report.reconstruction.iterations, 20);
     assert!(report.reconstruction.normal_mae_deg.is_finite(), "{report:?}");
-    for file in ["mesh.ply", "comparison.png", "log.jsonl", "checkpoint.bin", "normals/000.exr", "stokes/000_s0.exr"] {
+    for file in ["mesh.ply", "log.jsonl", "checkpoint.bin"] {
         assert!(out.join("recon").join(file).is_file(), "{file}");
     }
+    // --mesh-only: no view outputs (`rmvp recon`'s own test covers them).
+    assert!(report.reconstruction.comparison.is_none() && !out.join("recon/normals").exists(), "{report:?}");
 
-    // One raw frame through `rmvp demosaic` gives the same Stokes as the demo's processing.
-    let raw = out.join("simulated/raw");
+    // One raw frame of the session through `rmvp demosaic`, with the session's dark frame,
+    // gives the session's Stokes.
+    let view = session.join("views/003");
     let again = tmp.path().join("again");
     ok(&[
         "demosaic",
-        s(&raw.join("003.raw")),
-        "--width",
-        "384",
-        "--height",
-        "320",
+        s(&view.join("raw/20000us_0.raw")),
         "--dark",
-        s(&raw.join("dark.raw")),
+        s(&session.join("dark/dark_20000us.png")),
         "-o",
         s(&again),
     ]);
-    let stokes = rmvp_dataset::layout::rmvp::read_stokes(&again.join("003_stokes.exr")).unwrap();
-    let sensor = SensorRecord::read(&raw.join("sensor.json")).unwrap();
-    assert_eq!(sensor, report.raw_frames);
-    assert_eq!((sensor.width, sensor.height, sensor.pixel_format.name().as_str()), (384, 320, "BayerRGPolarized12p"));
-    let gain = sensor.stokes_gain;
-    let captured = rmvp_dataset::io::npy::read_npy::<f32>(&out.join("captured/s0/0003.npy")).unwrap();
-    assert!(stokes.s0.data().iter().zip(&captured.data).all(|(a, b)| (a / gain - b).abs() <= 1e-5 * b.abs().max(1.0)));
+    let demosaiced = rmvp_dataset::layout::rmvp::read_stokes(&again.join("20000us_0_stokes.exr")).unwrap();
+    let close = |a: &f32, b: &f32| (a - b).abs() <= 1e-5 * b.abs().max(1.0);
+    assert!(demosaiced.s0.data().iter().zip(stokes.s0.data()).all(|(a, b)| close(a, b)));
     for suffix in ["000.png", "045.png", "090.png", "135.png", "aop.exr", "dop.exr", "aop.png", "dop.png", "s0.png"] {
-        assert!(again.join(format!("003_{suffix}")).is_file(), "{suffix}");
+        assert!(again.join(format!("20000us_0_{suffix}")).is_file(), "{suffix}");
     }
 }
 

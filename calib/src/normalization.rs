@@ -4,7 +4,9 @@
 //! A guess of the centre (the point nearest to the rays through the masks' centroids) and of
 //! the size (the masks' extent at that depth) gives a box; a voxel grid over it is carved by
 //! every view whose image it falls in (masks dilated by two pixels, so that the hull contains
-//! the object); the sphere bounding the voxels left, with a margin, is the normalisation. When
+//! the object) and, outside its image, by every view whose mask leaves the image's border free
+//! (it sees the whole object, so nothing outside its image is the object; a view that cuts the
+//! object cannot carve what it does not see); the sphere bounding the voxels left, with a margin, is the normalisation. When
 //! the hull touches the box, the box grows and the carving starts again.
 
 use crate::{Error, Result};
@@ -18,6 +20,13 @@ const GRID: usize = 96;
 pub const MARGIN: f64 = 1.1;
 /// Mask dilation before carving, pixels.
 const DILATION: usize = 2;
+
+/// Whether the mask leaves a border of the image free: the view sees the whole object.
+fn sees_whole_object(mask: &Image<u8>) -> bool {
+    let (w, h) = mask.size();
+    let at = |x: usize, y: usize| mask.data()[y * w + x] > 127;
+    !((0..w).any(|x| at(x, 0) || at(x, h - 1)) || (0..h).any(|y| at(0, y) || at(w - 1, y)))
+}
 
 /// The visual hull's bounding sphere: centre and radius (world units).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -109,6 +118,7 @@ pub fn visual_hull_sphere(views: &[(Camera, Image<u8>)]) -> Result<HullSphere> {
         half = half.max((a - b).norm() / 2.0);
     }
     let masks: Vec<Vec<bool>> = views.par_iter().map(|(_, m)| dilate(m, DILATION)).collect();
+    let whole: Vec<bool> = views.iter().map(|(_, m)| sees_whole_object(m)).collect();
     let mut extent = 1.5 * half.max(1e-9);
     for _ in 0..4 {
         let step = 2.0 * extent / GRID as f64;
@@ -118,11 +128,13 @@ pub fn visual_hull_sphere(views: &[(Camera, Image<u8>)]) -> Result<HullSphere> {
             .filter_map(|k| {
                 let (i, j, l) = (k % GRID, k / GRID % GRID, k / (GRID * GRID));
                 let p = centre + Vector3::new(at(i), at(j), at(l));
-                let inside = views.iter().zip(&masks).all(|((camera, mask), dilated)| {
-                    let Some(q) = camera.project(&p) else { return true };
+                let inside = views.iter().zip(&masks).zip(&whole).all(|(((camera, mask), dilated), &whole)| {
+                    // Outside a view's image (or behind it): not the object if the view sees
+                    // all of it; otherwise this view cannot carve the point.
+                    let Some(q) = camera.project(&p) else { return !whole };
                     let (w, h) = mask.size();
                     if q.x < 0.0 || q.y < 0.0 || q.x >= w as f64 || q.y >= h as f64 {
-                        return true; // outside this image: this view cannot carve it
+                        return !whole;
                     }
                     dilated[q.y as usize * w + q.x as usize]
                 });
@@ -154,4 +166,54 @@ pub fn visual_hull_sphere(views: &[(Camera, Image<u8>)]) -> Result<HullSphere> {
     Err(Error::MaskInput(
         "the visual hull does not close: the masks leave the object unbounded (too few views?)".into(),
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rmvp_render::rig::{framing_distance, rig_intrinsics, RigKind};
+
+    /// The mask of a sphere of `radius` at `centre` in `camera` (pixel centres whose ray meets it).
+    fn sphere_mask(camera: &Camera, centre: &Point3<f64>, radius: f64) -> Image<u8> {
+        let (w, h) = (camera.width, camera.height);
+        let data = (0..h)
+            .flat_map(|j| (0..w).map(move |i| (i, j)))
+            .map(|(i, j)| {
+                let ray = camera.pixel_ray(i, j);
+                let to_centre = centre - ray.origin;
+                let miss = (to_centre - ray.direction * to_centre.dot(&ray.direction)).norm();
+                if miss < radius {
+                    255
+                } else {
+                    0
+                }
+            })
+            .collect();
+        Image::from_vec(w as usize, h as usize, 1, data).unwrap()
+    }
+
+    #[test]
+    fn six_turntable_views_bound_a_sphere_tightly() {
+        // The demo's rig: two rings at 10 and 35 degrees, and pairs of nearly parallel views
+        // whose silhouette cones overlap to infinity behind the object. While views did not
+        // carve outside their images, that space was never carved and the hull did not close.
+        let (w, h) = (160, 128);
+        let k = rig_intrinsics(w, h);
+        let (centre, radius) = (Point3::new(0.1, -0.05, 0.2), 0.8);
+        let distance = framing_distance(&k, w, h, 1.0, 0.85);
+        let views: Vec<(Camera, Image<u8>)> = RigKind::Turntable
+            .rig(6)
+            .cameras(k, w, h, distance, 0)
+            .into_iter()
+            .map(|mut camera| {
+                // Look at `centre`: move the world by it.
+                camera.t -= camera.r * centre.coords;
+                let mask = sphere_mask(&camera, &centre, radius);
+                (camera, mask)
+            })
+            .collect();
+        let hull = visual_hull_sphere(&views).unwrap();
+        assert!((hull.center - centre).norm() < 0.15 * radius, "{hull:?}");
+        assert!(hull.radius > radius && hull.radius < 1.6 * radius, "{hull:?}");
+    }
 }

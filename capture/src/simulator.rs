@@ -515,6 +515,18 @@ impl SimulatedCamera {
     pub fn views(&self) -> usize {
         self.shared.scene.cameras.len()
     }
+
+    /// The scene it films: cameras, subject and their geometry.
+    pub fn scene(&self) -> &SimulatedScene {
+        &self.shared.scene
+    }
+
+    /// The noise-free rendering its frames of pose `view` are exposed from (rendered now if
+    /// the turntable has not reached it yet): the ground truth of that view's Stokes.
+    pub fn rendered(&self, view: usize) -> Arc<Stokes> {
+        self.shared.ensure_rendered(view);
+        self.shared.poses.lock().expect("poses")[view].clone().expect("rendered above")
+    }
 }
 
 impl Drop for SimulatedCamera {

@@ -1,47 +1,58 @@
-//! The pipeline on its built-in example, end to end:
+//! The pipeline on its built-in example, end to end, through the stages a lab runs:
 //!
-//! 1. Simulate a capture: six views of the built-in "spot" rendered with polarization, and the
-//!    raw 12-bit frames the sensor would send (with shot and read noise and a dark frame).
-//! 2. Capture processing: every raw frame through decoding, demosaicing, dark subtraction and
-//!    Stokes, AoP and DoP estimation.
-//! 3. Dataset: the processed views with their cameras and masks as a NeRSP-layout scene, read
-//!    back and validated.
-//! 4. Report: the captured polarization against the rendered ground truth, as numbers
+//! 1. Capture: the built-in "spot" on the simulated turntable, six views through the simulated
+//!    GenICam camera (the BFS-U3-51S5PC-C's 2448x2048 polarized raw frames over GigE Vision on
+//!    loopback) into a capture session ([`rmvp_capture::session::capture`]: dark frames,
+//!    demosaicing, Stokes, AoP, DoP).
+//! 2. Ground truth: the camera's own noise-free renderings and the object's geometry per view,
+//!    in the NeRSP layout (`simulated/`).
+//! 3. Poses and masks: the rig's cameras imported from that layout's `cameras.npz`
+//!    ([`rmvp_calib::poses::pose_session`]), masks from the object's mesh
+//!    ([`rmvp_calib::masks::make_masks`]).
+//! 4. Dataset: `rmvp dataset build` on the posed, masked session ([`build_dataset`]).
+//! 5. Report: the dataset's polarization against the rendered ground truth, as numbers
 //!    ([`DemoReport`], `report.json`) and pictures (`contact_sheet.png`).
-//! 5. Reconstruction: NeRSP (fast preset) on the captured dataset, evaluated against the true
-//!    mesh and normals.
+//! 6. Reconstruction: NeRSP (fast preset) on the dataset, evaluated against the true mesh and
+//!    normals.
 
-use crate::simulate::{simulate, SimulateOptions, DARK_FRAME, RAW_FOLDER, RAW_FORMAT};
-use crate::Result;
+use crate::build::{build_dataset, BuildOptions, BuildRecord, TrainViews};
+use crate::{Error, Result};
 use rmvp_align::{evaluate, SurfaceOptions};
-use rmvp_capture::sensor::{SensorRecord, SENSOR_FILE};
-use rmvp_capture::{FrameProcessor, RawFrame};
+use rmvp_calib::masks::{make_masks, MaskMethod, MaskOptions, MASKS_FOLDER};
+use rmvp_calib::poses::{pose_session, PoseRequest, POSES_FILE};
+use rmvp_capture::camera::{Camera, CameraSettings};
+use rmvp_capture::session::positioning::Positioning;
+use rmvp_capture::session::{capture, SessionOptions, SessionReport};
+use rmvp_capture::simulator::{SimulatedCamera, SimulatedScene, SimulatorConfig};
 use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::io::png;
-use rmvp_dataset::layout::{read_scene, write_scene, Layout};
+use rmvp_dataset::layout::{nersp, read_scene, write_scene, Layout};
 use rmvp_dataset::progress::progress_bar;
+use rmvp_dataset::session::{SessionManifest, StokesUnit};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, downsample, gray_ramp, preview, quantile};
-use rmvp_dataset::{Image, Mesh, Scene, View};
+use rmvp_dataset::{Image, Mesh, Scene, Split, View};
 use rmvp_recon::model::Preset;
 use rmvp_recon::reconstruct::{reconstruct, Options as ReconOptions, MESH};
+use rmvp_render::envmap::procedural_image;
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 /// What the demo runs; [`DemoOptions::default`] holds every default of `rmvp demo`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct DemoOptions {
     /// Output folder.
     pub output: PathBuf,
-    /// Image size of the simulated views (the raw frames are twice as large).
-    pub size: (u32, u32),
-    /// Samples per pixel of the simulation.
+    /// Samples per pixel of the simulated camera's renderer.
     pub spp: u32,
     /// Training iterations of the reconstruction (fast preset).
     pub recon_iterations: u32,
     /// Marching grid cells per axis of the reconstructed mesh.
     pub mesh_resolution: usize,
+    /// Render the reconstruction's normal maps and Stokes in every view (off: the mesh only).
+    pub view_outputs: bool,
     /// Show progress bars.
     pub progress: bool,
 }
@@ -50,17 +61,21 @@ impl Default for DemoOptions {
     fn default() -> Self {
         Self {
             output: PathBuf::from("demo-out"),
-            size: (612, 512),
             spp: 16,
             recon_iterations: 1000,
             mesh_resolution: 192,
+            view_outputs: true,
             progress: true,
         }
     }
 }
 
-/// Views the demo simulates.
+/// Views the demo captures (all of them train, as NeRSP's sparse split does).
 pub const DEMO_VIEWS: usize = 6;
+/// The captured object's name.
+pub const DEMO_OBJECT: &str = "spot";
+/// Dark frames averaged at the start of the session (the simulated rig's lens cap).
+pub const DEMO_DARK_FRAMES: usize = 4;
 /// AoP is compared where the rendered light is at least this polarized.
 pub const AOP_MIN_DOP: f32 = 0.05;
 /// S0 is compared where the rendered S0 (green) is at least this bright.
@@ -71,31 +86,52 @@ pub const AOP_ERROR_MAP_MAX_DEG: f32 = 10.0;
 pub const REPORT_FILE: &str = "report.json";
 /// The contact sheet's file name.
 pub const CONTACT_SHEET: &str = "contact_sheet.png";
+/// The capture session's folder.
+pub const SESSION_FOLDER: &str = "session";
+/// The ground truth's folder (NeRSP layout).
+pub const TRUTH_FOLDER: &str = "simulated";
+/// The dataset's folder.
+pub const DATASET_FOLDER: &str = "dataset";
+/// The reconstruction's folder.
+pub const RECON_FOLDER: &str = "recon";
 
-/// The simulation the demo made.
+/// The capture session the demo made.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SimulatedSummary {
-    /// Views rendered.
+pub struct CaptureSummary {
+    /// Its folder, relative to the output folder.
+    pub folder: String,
+    /// The camera, as it named itself over GenICam.
+    pub camera: String,
+    /// The pixel format it streamed.
+    pub pixel_format: String,
+    /// Raw frame size.
+    pub raw_size: [usize; 2],
+    /// Views captured.
     pub views: usize,
-    /// Image size.
-    pub size: [u32; 2],
-    /// Samples per pixel.
+    /// Dark frames averaged.
+    pub dark_frames: usize,
+    /// Frames the stream lost and the session grabbed again.
+    pub dropped_frames: usize,
+    /// Samples per pixel of the simulated camera's renderer.
     pub spp: u32,
-    /// Where the simulated scene is, relative to the output folder.
-    pub layout: String,
+    /// Processed Stokes per unit of rendered Stokes (exposure x gain): the session's Stokes are
+    /// divided by it before they are compared with the ground truth.
+    pub stokes_gain: f32,
 }
 
-/// The dataset built from the processed frames.
+/// The dataset built from the session.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DatasetSummary {
     /// Its folder, relative to the output folder.
     pub folder: String,
-    /// Its layout.
-    pub layout: String,
+    /// The layouts in it.
+    pub layouts: Vec<String>,
     /// Views it holds.
     pub views: usize,
-    /// Whether it read back and validated.
-    pub valid: bool,
+    /// Its training views.
+    pub train: Vec<String>,
+    /// Whether its build record says complete.
+    pub complete: bool,
 }
 
 /// Quantiles of an error over the pixels where it was measured.
@@ -132,22 +168,23 @@ pub struct ReconSummary {
     pub f_score: f64,
     /// Mean normal angular error over the views, degrees.
     pub normal_mae_deg: f64,
-    /// The input-against-rendered picture, relative to the output folder.
-    pub comparison: String,
+    /// The input-against-rendered picture, relative to the output folder (none when the
+    /// views were not rendered).
+    pub comparison: Option<String>,
 }
 
 /// Everything the demo measured (`report.json`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct DemoReport {
-    /// The simulation.
-    pub simulated: SimulatedSummary,
-    /// The raw frames and the sensor that made them.
-    pub raw_frames: SensorRecord,
-    /// The captured dataset.
-    pub captured_dataset: DatasetSummary,
-    /// Captured AoP against the rendered AoP, degrees (where DoP > [`AOP_MIN_DOP`]).
+    /// The capture session.
+    pub capture: CaptureSummary,
+    /// The ground truth's folder (NeRSP layout), relative to the output folder.
+    pub ground_truth: String,
+    /// The dataset.
+    pub dataset: DatasetSummary,
+    /// The dataset's AoP against the rendered AoP, degrees (where DoP > [`AOP_MIN_DOP`]).
     pub aop_error_deg: ErrorQuantiles,
-    /// Captured S0 against the rendered S0, relative (where S0 > [`S0_MIN`]).
+    /// The dataset's S0 against the rendered S0, relative (where S0 > [`S0_MIN`]).
     pub s0_rel_error: ErrorQuantiles,
     /// The contact sheet, relative to the output folder.
     pub contact_sheet: String,
@@ -172,126 +209,169 @@ impl DemoReport {
 /// Run the demo into `options.output`; `announce` hears a line as each stage starts.
 pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result<DemoReport> {
     let out = &options.output;
-    let (width, height) = options.size;
+    let session = out.join(SESSION_FOLDER);
     announce(&format!(
-        "1/5 simulating a capture of spot: {DEMO_VIEWS} views at {width}x{height}, {} spp, with raw sensor frames",
+        "1/6 capturing {DEMO_OBJECT} on the simulated turntable: {DEMO_VIEWS} views through the simulated GenICam camera ({} spp)",
         options.spp
     ));
-    let truth = simulate(&SimulateOptions {
-        output: out.join("simulated"),
-        views: DEMO_VIEWS,
-        size: options.size,
-        spp: options.spp,
-        raw: true,
-        layouts: vec![Layout::Nersp],
+    let config = SimulatorConfig { views: DEMO_VIEWS, spp: options.spp, ..SimulatorConfig::default() };
+    let simulator = SimulatedCamera::start(&config)?;
+    let captured = capture_session(&simulator, &session, options.progress)?;
+    let manifest = SessionManifest::read(&session)?;
+
+    announce("2/6 ground truth: the camera's noise-free renderings and the object's geometry (NeRSP layout)");
+    let names: Vec<String> = manifest.views.iter().map(|v| v.name.clone()).collect();
+    let truth = truth_scene(&simulator, &names)?;
+    drop(simulator);
+    let truth_dir = out.join(TRUTH_FOLDER);
+    write_scene(&truth, &truth_dir, Layout::Nersp)?;
+
+    announce("3/6 poses (the rig's cameras, imported) and masks (from the object's mesh)");
+    let source = truth_dir.join(nersp::CAMERAS);
+    pose_session(&session, &PoseRequest::Import { source, min_views: DEMO_VIEWS }, &session.join(POSES_FILE))?;
+    let masks =
+        MaskOptions { method: MaskMethod::Mesh, mesh: Some(truth_dir.join(nersp::GT_MESH)), ..MaskOptions::default() };
+    make_masks(&session, &masks, &session.join(MASKS_FOLDER))?;
+
+    announce("4/6 building the dataset from the posed, masked session (NeRSP and rmvp layouts)");
+    let dataset_dir = out.join(DATASET_FOLDER);
+    let record = build_dataset(&BuildOptions {
+        session: session.clone(),
+        output: dataset_dir.clone(),
+        train: TrainViews::Count(DEMO_VIEWS),
         progress: options.progress,
-        ..SimulateOptions::default()
+        ..BuildOptions::default()
     })?;
+    let dataset = read_scene(&dataset_dir.join(Layout::Nersp.name()))?;
 
-    announce("2/5 processing the raw frames (decode, demosaic, dark frame, Stokes, AoP, DoP)");
-    let raw_dir = out.join("simulated").join(RAW_FOLDER);
-    let sensor = SensorRecord::read(&raw_dir.join(SENSOR_FILE))?;
-    let captured = process_raw_capture(&truth, &raw_dir, &sensor, options.progress)?;
-
-    announce("3/5 writing the captured dataset (NeRSP layout) and validating it");
-    let dataset_dir = out.join("captured");
-    write_scene(&captured, &dataset_dir, Layout::Nersp)?;
-    let reread = read_scene(&dataset_dir)?;
-
-    announce("4/5 comparing the captured polarization with the rendered ground truth");
-    let comparison = compare_polarization(&truth, &reread);
+    announce("5/6 comparing the dataset's polarization with the rendered ground truth");
+    let stokes_gain = stokes_gain(&session, &manifest)?;
+    let comparison = compare_polarization(&truth, &dataset, stokes_gain);
     png::write_png_u8(&out.join(CONTACT_SHEET), &contact_sheet(&comparison.tiles, 4))?;
 
-    announce(&format!(
-        "5/5 reconstructing the captured dataset (NeRSP, fast preset, {} iterations)",
-        options.recon_iterations
-    ));
-    let recon_dir = out.join("recon");
-    let recon_options = ReconOptions {
-        iterations: Some(options.recon_iterations),
-        mesh_resolution: options.mesh_resolution,
-        ..ReconOptions::default()
-    };
-    let bar = progress_bar(options.progress, options.recon_iterations as u64, "recon");
-    let started = std::time::Instant::now();
-    reconstruct(&reread, &recon_dir, &recon_options, |_, trainer| {
-        bar.set_position(trainer.iteration as u64);
-        ControlFlow::Continue(())
-    })?;
-    bar.finish();
-    let seconds = started.elapsed().as_secs_f64();
-    let predicted = Mesh::read(&recon_dir.join(MESH))?;
-    let true_mesh = truth.mesh.as_ref().expect("simulations have their mesh");
-    let evaluation = evaluate(&predicted, true_mesh, Some(&truth), &SurfaceOptions::default())?;
+    announce(&format!("6/6 reconstructing the dataset (NeRSP, fast preset, {} iterations)", options.recon_iterations));
+    let reconstruction = reconstruct_and_evaluate(&dataset, &truth, &out.join(RECON_FOLDER), options)?;
 
     let report = DemoReport {
-        simulated: SimulatedSummary {
-            views: truth.views.len(),
-            size: [width, height],
+        capture: CaptureSummary {
+            folder: SESSION_FOLDER.into(),
+            camera: format!("{} {}", manifest.camera.identity.vendor, manifest.camera.identity.model),
+            pixel_format: manifest.camera.pixel_format.clone(),
+            raw_size: [manifest.camera.width, manifest.camera.height],
+            views: captured.views_complete,
+            dark_frames: manifest.settings.dark_frames,
+            dropped_frames: captured.dropped_frames,
             spp: options.spp,
-            layout: "simulated/nersp".into(),
+            stokes_gain,
         },
-        raw_frames: sensor,
-        captured_dataset: DatasetSummary {
-            folder: "captured".into(),
-            layout: Layout::Nersp.name().into(),
-            views: reread.views.len(),
-            valid: true,
-        },
+        ground_truth: TRUTH_FOLDER.into(),
+        dataset: dataset_summary(&record),
         aop_error_deg: ErrorQuantiles::of(&comparison.aop_errors_deg),
         s0_rel_error: ErrorQuantiles::of(&comparison.s0_rel_errors),
         contact_sheet: CONTACT_SHEET.into(),
         contact_sheet_columns: ["rendered S0", "captured S0", "captured AoP (hue) x DoP", "AoP error 0..10 deg"]
             .map(String::from)
             .to_vec(),
-        reconstruction: ReconSummary {
-            folder: "recon".into(),
-            preset: recon_options.preset,
-            iterations: options.recon_iterations,
-            seconds,
-            chamfer: evaluation.surface.chamfer,
-            f_score: evaluation.surface.fscore,
-            normal_mae_deg: evaluation.normal_mae_deg.expect("a scene was given"),
-            comparison: "recon/comparison.png".into(),
-        },
+        reconstruction,
     };
     report.write(&out.join(REPORT_FILE))?;
     Ok(report)
 }
 
-/// Process the raw frames of a simulated capture (`DIR/<view>.raw`, `DIR/dark.raw`, as
-/// [`crate::simulate`] writes them) into a scene with `truth`'s cameras and masks, and Stokes,
-/// AoP and DoP from the frames, in the rendered light's units.
-pub fn process_raw_capture(truth: &Scene, dir: &Path, sensor: &SensorRecord, progress: bool) -> Result<Scene> {
-    let (width, height) = (sensor.width, sensor.height);
-    let processor = FrameProcessor {
-        dark: Some(RawFrame::read(&dir.join(DARK_FRAME), RAW_FORMAT, width, height)?),
-        ..Default::default()
+/// Capture the simulated camera's turntable views into `dir`, as `rmvp capture --simulated
+/// --dark 4` would.
+fn capture_session(simulator: &SimulatedCamera, dir: &Path, progress: bool) -> Result<SessionReport> {
+    let mut camera = Camera::open(Some(&simulator.serial))?;
+    let settings = CameraSettings::default();
+    let options = SessionOptions {
+        object: DEMO_OBJECT.into(),
+        views: DEMO_VIEWS,
+        dir: dir.to_path_buf(),
+        exposures_us: vec![settings.exposure_us],
+        camera: settings,
+        average: 1,
+        dark_frames: DEMO_DARK_FRAMES,
+        positioning: Positioning::default_for(&camera),
+        resume: false,
+        frame_timeout: Duration::from_secs(5),
+        preview: None,
+        progress,
     };
-    let mut captured = Scene { mesh: None, env_map: None, ..truth.clone() };
-    let bar = progress_bar(progress, truth.views.len() as u64, "process");
-    let gain = 1.0 / sensor.stokes_gain;
-    for view in &mut captured.views {
-        let frame = RawFrame::read(&dir.join(format!("{}.raw", view.name)), RAW_FORMAT, width, height)?;
-        let processed = processor.process(&frame)?;
-        let mut stokes = processed.estimate.stokes;
-        for image in [&mut stokes.s0, &mut stokes.s1, &mut stokes.s2] {
-            image.data_mut().iter_mut().for_each(|v| *v *= gain);
-        }
-        *view = View {
-            aop: Some(processed.aop),
-            dop: Some(processed.dop),
-            stokes: Some(stokes),
-            polarized: None,
-            preview: None,
-            normals: None,
-            depth: None,
-            ..view.clone()
-        };
-        bar.inc(1);
+    Ok(capture(&mut camera, &options)?)
+}
+
+/// The ground truth of the simulated camera's views, named `names` (the session's): its
+/// noise-free rendering, mask, depth and normals; the object's mesh and the environment.
+fn truth_scene(simulator: &SimulatedCamera, names: &[String]) -> Result<Scene> {
+    let simulated = simulator.scene();
+    let subject = simulated.subject.clone().expect("the turntable holds an object");
+    let mut scene = Scene::new();
+    for (i, name) in names.iter().enumerate() {
+        let maps = simulated.geometry(i);
+        let mut view = View::new(name.clone(), Split::Train, simulated.cameras[i].clone());
+        view.stokes = Some(simulator.rendered(i).as_ref().clone());
+        (view.mask, view.depth, view.normals) = (Some(maps.mask), Some(maps.depth), Some(maps.normals));
+        scene.views.push(view);
     }
+    scene.normalization = nalgebra::Matrix4::new_scaling(NORMALIZATION_MARGIN * subject.radius() as f64);
+    scene.mesh = Some(subject);
+    scene.env_map = Some(procedural_image());
+    Ok(scene)
+}
+
+/// The normalisation sphere of the ground truth is this much larger than the object's.
+const NORMALIZATION_MARGIN: f64 = 1.1;
+
+/// Processed Stokes per unit of rendered Stokes in the simulated camera's session `dir`.
+fn stokes_gain(dir: &Path, manifest: &SessionManifest) -> Result<f32> {
+    match &manifest.settings.stokes_unit {
+        StokesUnit::FullScale { bits, exposure_us, gain_db } => {
+            Ok(SimulatedScene::sensor(*exposure_us, *gain_db, *bits).stokes_gain())
+        }
+        other => Err(Error::Folder { path: dir.to_path_buf(), why: format!("Stokes in {other}, not one exposure's") }),
+    }
+}
+
+/// The dataset's summary from its build record.
+fn dataset_summary(record: &BuildRecord) -> DatasetSummary {
+    DatasetSummary {
+        folder: DATASET_FOLDER.into(),
+        layouts: [Layout::Nersp, Layout::Rmvp].map(|l| l.name().to_string()).to_vec(),
+        views: record.views.len(),
+        train: record.train.clone(),
+        complete: record.complete,
+    }
+}
+
+/// Reconstruct `dataset` into `dir` and evaluate the mesh against `truth`.
+fn reconstruct_and_evaluate(dataset: &Scene, truth: &Scene, dir: &Path, options: &DemoOptions) -> Result<ReconSummary> {
+    let recon_options = ReconOptions {
+        iterations: Some(options.recon_iterations),
+        mesh_resolution: options.mesh_resolution,
+        view_outputs: options.view_outputs,
+        ..ReconOptions::default()
+    };
+    let bar = progress_bar(options.progress, options.recon_iterations as u64, "recon");
+    let started = std::time::Instant::now();
+    reconstruct(dataset, dir, &recon_options, |_, trainer| {
+        bar.set_position(trainer.iteration as u64);
+        ControlFlow::Continue(())
+    })?;
     bar.finish();
-    Ok(captured)
+    let seconds = started.elapsed().as_secs_f64();
+    let predicted = Mesh::read(&dir.join(MESH))?;
+    let true_mesh = truth.mesh.as_ref().expect("the truth has its mesh");
+    let evaluation = evaluate(&predicted, true_mesh, Some(truth), &SurfaceOptions::default())?;
+    Ok(ReconSummary {
+        folder: RECON_FOLDER.into(),
+        preset: recon_options.preset,
+        iterations: options.recon_iterations,
+        seconds,
+        chamfer: evaluation.surface.chamfer,
+        f_score: evaluation.surface.fscore,
+        normal_mae_deg: evaluation.normal_mae_deg.expect("a scene was given"),
+        comparison: options.view_outputs.then(|| format!("{RECON_FOLDER}/comparison.png")),
+    })
 }
 
 /// Captured polarization against the rendered truth.
@@ -305,8 +385,9 @@ pub struct PolarizationComparison {
     pub tiles: Vec<Image<u8>>,
 }
 
-/// Compare the captured views' Stokes with the truth's, view by view (same names, same order).
-pub fn compare_polarization(truth: &Scene, captured: &Scene) -> PolarizationComparison {
+/// Compare the captured views' Stokes, divided by `stokes_gain`, with the truth's, view by view
+/// (same order).
+pub fn compare_polarization(truth: &Scene, captured: &Scene, stokes_gain: f32) -> PolarizationComparison {
     let (mut aop_errors_deg, mut s0_rel_errors, mut tiles) = (Vec::new(), Vec::new(), Vec::new());
     for (t, c) in truth.views.iter().zip(&captured.views) {
         let (Some(ts), Some(cs), Some(mask)) = (&t.stokes, &c.stokes, &t.mask) else { continue };
@@ -321,7 +402,7 @@ pub fn compare_polarization(truth: &Scene, captured: &Scene) -> PolarizationComp
                 aop_errors_deg.push(e);
                 error_map.data_mut()[k] = e;
             }
-            let (a, b) = (cs.s0.data()[3 * k + 1], ts.s0.data()[3 * k + 1]);
+            let (a, b) = (cs.s0.data()[3 * k + 1] / stokes_gain, ts.s0.data()[3 * k + 1]);
             if b > S0_MIN {
                 s0_rel_errors.push((a - b).abs() / b);
             }
@@ -361,27 +442,38 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join(REPORT_FILE);
         let report = DemoReport {
-            simulated: SimulatedSummary { views: 6, size: [612, 512], spp: 16, layout: "simulated/nersp".into() },
-            raw_frames: SensorRecord::new(Default::default(), RAW_FORMAT, 1224, 1024),
-            captured_dataset: DatasetSummary {
-                folder: "captured".into(),
-                layout: "nersp".into(),
+            capture: CaptureSummary {
+                folder: SESSION_FOLDER.into(),
+                camera: "rmvp Simulated BFS-U3-51S5PC-C".into(),
+                pixel_format: "BayerRGPolarized12p".into(),
+                raw_size: [2448, 2048],
                 views: 6,
-                valid: true,
+                dark_frames: 4,
+                dropped_frames: 0,
+                spp: 16,
+                stokes_gain: 0.5,
+            },
+            ground_truth: TRUTH_FOLDER.into(),
+            dataset: DatasetSummary {
+                folder: DATASET_FOLDER.into(),
+                layouts: vec!["nersp".into(), "rmvp".into()],
+                views: 6,
+                train: vec!["000".into(), "001".into()],
+                complete: true,
             },
             aop_error_deg: ErrorQuantiles { median: 2.6, p90: 7.5, pixels: 1234 },
             s0_rel_error: ErrorQuantiles { median: 0.01, p90: 0.03, pixels: 2345 },
             contact_sheet: CONTACT_SHEET.into(),
             contact_sheet_columns: vec!["a".into(), "b".into()],
             reconstruction: ReconSummary {
-                folder: "recon".into(),
+                folder: RECON_FOLDER.into(),
                 preset: Preset::Fast,
                 iterations: 1000,
                 seconds: 490.5,
                 chamfer: 0.0132,
                 f_score: 0.908,
                 normal_mae_deg: 5.8,
-                comparison: "recon/comparison.png".into(),
+                comparison: Some("recon/comparison.png".into()),
             },
         };
         report.write(&path).unwrap();

@@ -10,10 +10,7 @@ pub struct Args {
     /// Output folder.
     #[arg(short, long, default_value_os_t = DemoOptions::default().output)]
     output: PathBuf,
-    /// Image size WIDTHxHEIGHT of the simulated views (the raw frames are twice as large).
-    #[arg(long, value_parser = super::parse_size, default_value = "612x512")]
-    res: (u32, u32),
-    /// Samples per pixel of the simulation.
+    /// Samples per pixel of the simulated camera's renderer.
     #[arg(long, default_value_t = DemoOptions::default().spp)]
     spp: u32,
     /// Training iterations of the reconstruction (fast preset).
@@ -22,16 +19,19 @@ pub struct Args {
     /// Marching grid cells per axis of the reconstructed mesh.
     #[arg(long, default_value_t = DemoOptions::default().mesh_resolution)]
     mesh_res: usize,
+    /// Reconstruct the mesh only: no normal maps or re-rendered Stokes of the views.
+    #[arg(long)]
+    mesh_only: bool,
 }
 
 /// Run the command.
 pub fn run(args: Args) -> Result<()> {
     let options = DemoOptions {
         output: args.output,
-        size: args.res,
         spp: args.spp,
         recon_iterations: args.recon_iters,
         mesh_resolution: args.mesh_res,
+        view_outputs: !args.mesh_only,
         progress: true,
     };
     let report = run_demo(&options, &mut |line| println!("{line}"))?;
@@ -45,13 +45,14 @@ pub fn run(args: Args) -> Result<()> {
     );
     println!(
         "reconstruction ({:.0} s): Chamfer {:.4} (object radius 1), F-score {:.3}, normal MAE {:.2} deg over {} views",
-        recon.seconds, recon.chamfer, recon.f_score, recon.normal_mae_deg, report.simulated.views
+        recon.seconds, recon.chamfer, recon.f_score, recon.normal_mae_deg, report.dataset.views
     );
     println!("wrote {}:", options.output.display());
     println!("  contact_sheet.png  per view: rendered S0 | captured S0 | captured AoP x DoP | AoP error");
     println!("  report.json        the figures above");
-    println!("  simulated/         ground truth (NeRSP layout with gt/) and raw/ sensor frames");
-    println!("  captured/          the dataset built from the raw frames (NeRSP layout)");
+    println!("  session/           the capture session (raw frames, Stokes, AoP, DoP; poses.json, masks/)");
+    println!("  simulated/         ground truth (NeRSP layout with gt/): noise-free Stokes, normals, mesh");
+    println!("  dataset/           the dataset built from the session (nersp/, rmvp/, build.json)");
     println!("  recon/             mesh.ply, normals/, stokes/, comparison.png (input | rendered S0, AoP, normals), log.jsonl");
     Ok(())
 }

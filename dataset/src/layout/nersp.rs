@@ -27,6 +27,8 @@ use std::path::Path;
 
 /// The index file of this layout.
 pub const CAMERAS: &str = "cameras.npz";
+/// The ground-truth mesh (world frame).
+pub const GT_MESH: &str = "gt/mesh.ply";
 const GT_CAMERAS: &str = "gt/cameras.json";
 const PNG_SCALE: &str = "png_scale";
 const NORMAL_CHANNELS: [&str; 3] = ["N.X", "N.Y", "N.Z"];
@@ -96,7 +98,7 @@ pub fn read(dir: &Path) -> Result<Scene> {
     );
     views.par_iter_mut().try_for_each(|view| read_ground_truth_images(dir, view))?;
 
-    let mesh_path = dir.join("gt/mesh.ply");
+    let mesh_path = dir.join(GT_MESH);
     let mesh = mesh_path.is_file().then(|| Mesh::read(&mesh_path)).transpose()?;
     let env_path = dir.join("gt/env.exr");
     let env_map = env_path.is_file().then(|| exr::read_exr(&env_path, &RGB)).transpose()?;
@@ -262,7 +264,7 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
             Ok::<_, Error>(())
         })?;
         if let Some(mesh) = &scene.mesh {
-            mesh.write(&dir.join("gt/mesh.ply"))?;
+            mesh.write(&dir.join(GT_MESH))?;
         }
         if let Some(env) = &scene.env_map {
             exr::write_exr(&dir.join("gt/env.exr"), env, &RGB)?;
