@@ -54,6 +54,8 @@ use std::time::Instant;
 
 /// The record of a build, in the dataset folder.
 pub const BUILD_FILE: &str = "build.json";
+/// The layouts every dataset holds, each in the folder named after it.
+pub const DATASET_LAYOUTS: [Layout; 2] = [Layout::Nersp, Layout::Rmvp];
 /// The `format` of [`BuildRecord`].
 pub const BUILD_FORMAT: &str = "rmvp-build";
 /// The reference reconstruction's folder.
@@ -580,7 +582,7 @@ pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
     // 6. Both layouts, each written aside and moved into place whole.
     let clock = Instant::now();
     scene.metadata.insert("train".into(), serde_json::to_value(&train).expect("plain"));
-    for layout in [Layout::Nersp, Layout::Rmvp] {
+    for layout in DATASET_LAYOUTS {
         let (final_dir, partial) = (out.join(layout.name()), out.join(format!("{}.partial", layout.name())));
         for dir in [&final_dir, &partial] {
             if dir.exists() {

@@ -15,7 +15,8 @@
 //! 6. Reconstruction: NeRSP (fast preset) on the dataset, evaluated against the true mesh and
 //!    normals.
 
-use crate::build::{build_dataset, BuildOptions, BuildRecord, TrainViews};
+use crate::build::{build_dataset, BuildOptions, BuildRecord, TrainViews, DATASET_LAYOUTS};
+use crate::simulate::NORMALIZATION_MARGIN;
 use crate::{Error, Result};
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_calib::masks::{make_masks, MaskMethod, MaskOptions, MASKS_FOLDER};
@@ -319,9 +320,6 @@ fn truth_scene(simulator: &SimulatedCamera, names: &[String]) -> Result<Scene> {
     Ok(scene)
 }
 
-/// The normalisation sphere of the ground truth is this much larger than the object's.
-const NORMALIZATION_MARGIN: f64 = 1.1;
-
 /// Processed Stokes per unit of rendered Stokes in the simulated camera's session `dir`.
 fn stokes_gain(dir: &Path, manifest: &SessionManifest) -> Result<f32> {
     match &manifest.settings.stokes_unit {
@@ -336,7 +334,7 @@ fn stokes_gain(dir: &Path, manifest: &SessionManifest) -> Result<f32> {
 fn dataset_summary(record: &BuildRecord) -> DatasetSummary {
     DatasetSummary {
         folder: DATASET_FOLDER.into(),
-        layouts: [Layout::Nersp, Layout::Rmvp].map(|l| l.name().to_string()).to_vec(),
+        layouts: DATASET_LAYOUTS.map(|l| l.name().to_string()).to_vec(),
         views: record.views.len(),
         train: record.train.clone(),
         complete: record.complete,

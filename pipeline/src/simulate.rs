@@ -32,7 +32,7 @@ use std::path::{Path, PathBuf};
 const FRAMING: f64 = 0.85;
 /// The normalisation sphere (`scale_mat`) is this much larger than the object's bounding
 /// sphere, so that reconstruction's unit sphere encloses it with a margin.
-const NORMALIZATION_MARGIN: f64 = 1.1;
+pub(crate) const NORMALIZATION_MARGIN: f64 = 1.1;
 /// The widest tile of the contact sheet, pixels.
 const SHEET_TILE_WIDTH: usize = 256;
 
