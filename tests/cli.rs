@@ -86,6 +86,12 @@ fn demo_captures_builds_a_dataset_and_reconstructs_it() {
     for suffix in ["000.png", "045.png", "090.png", "135.png", "aop.exr", "dop.exr", "aop.png", "dop.png", "s0.png"] {
         assert!(again.join(format!("20000us_0_{suffix}")).is_file(), "{suffix}");
     }
+
+    // Run again into the same folder: the earlier demo's files are replaced, others are kept.
+    std::fs::write(out.join("notes.txt"), "mine").unwrap();
+    ok(&args);
+    assert_eq!(std::fs::read_to_string(out.join("notes.txt")).unwrap(), "mine");
+    assert_eq!(DemoReport::read(&out.join("report.json")).unwrap().dataset, report.dataset);
 }
 
 #[test]

@@ -210,6 +210,7 @@ impl DemoReport {
 /// Run the demo into `options.output`; `announce` hears a line as each stage starts.
 pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result<DemoReport> {
     let out = &options.output;
+    remove_previous_demo(out)?;
     let session = out.join(SESSION_FOLDER);
     announce(&format!(
         "1/6 capturing {DEMO_OBJECT} on the simulated turntable: {DEMO_VIEWS} views through the simulated GenICam camera ({} spp)",
@@ -277,6 +278,23 @@ pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result
     };
     report.write(&out.join(REPORT_FILE))?;
     Ok(report)
+}
+
+/// The files and folders a demo writes into its output folder.
+const DEMO_OUTPUTS: [&str; 6] =
+    [SESSION_FOLDER, TRUTH_FOLDER, DATASET_FOLDER, RECON_FOLDER, REPORT_FILE, CONTACT_SHEET];
+
+/// Remove what an earlier demo wrote into `out` (and nothing else), so that the demo runs again
+/// from the start: a capture session or a dataset build would refuse a folder that is there.
+fn remove_previous_demo(out: &Path) -> Result<()> {
+    for path in DEMO_OUTPUTS.map(|name| out.join(name)) {
+        let removed = if path.is_dir() { std::fs::remove_dir_all(&path) } else { std::fs::remove_file(&path) };
+        match removed {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(rmvp_dataset::Error::io(&path, e).into()),
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 /// Capture the simulated camera's turntable views into `dir`, as `rmvp capture --simulated
