@@ -48,7 +48,7 @@ pub struct DemoOptions {
     pub output: PathBuf,
     /// Samples per pixel of the simulated camera's renderer.
     pub spp: u32,
-    /// Training iterations of the reconstruction (fast preset).
+    /// Training iterations of the reconstruction (fast preset; default: the preset's).
     pub recon_iterations: u32,
     /// Marching grid cells per axis of the reconstructed mesh.
     pub mesh_resolution: usize,
@@ -63,7 +63,7 @@ impl Default for DemoOptions {
         Self {
             output: PathBuf::from("demo-out"),
             spp: 16,
-            recon_iterations: 1000,
+            recon_iterations: Preset::Fast.default_iterations(),
             mesh_resolution: 192,
             view_outputs: true,
             progress: true,
@@ -223,7 +223,7 @@ pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result
 
     announce("2/6 ground truth: the camera's noise-free renderings and the object's geometry (NeRSP layout)");
     let names: Vec<String> = manifest.views.iter().map(|v| v.name.clone()).collect();
-    let truth = truth_scene(&simulator, &names)?;
+    let truth = truth_scene(&simulator, &names);
     drop(simulator);
     let truth_dir = out.join(TRUTH_FOLDER);
     write_scene(&truth, &truth_dir, Layout::Nersp)?;
@@ -321,7 +321,7 @@ fn capture_session(simulator: &SimulatedCamera, dir: &Path, progress: bool) -> R
 
 /// The ground truth of the simulated camera's views, named `names` (the session's): its
 /// noise-free rendering, mask, depth and normals; the object's mesh and the environment.
-fn truth_scene(simulator: &SimulatedCamera, names: &[String]) -> Result<Scene> {
+fn truth_scene(simulator: &SimulatedCamera, names: &[String]) -> Scene {
     let simulated = simulator.scene();
     let subject = simulated.subject.clone().expect("the turntable holds an object");
     let mut scene = Scene::new();
@@ -335,7 +335,7 @@ fn truth_scene(simulator: &SimulatedCamera, names: &[String]) -> Result<Scene> {
     scene.normalization = nalgebra::Matrix4::new_scaling(NORMALIZATION_MARGIN * subject.radius() as f64);
     scene.mesh = Some(subject);
     scene.env_map = Some(procedural_image());
-    Ok(scene)
+    scene
 }
 
 /// Processed Stokes per unit of rendered Stokes in the simulated camera's session `dir`.
