@@ -6,8 +6,9 @@
 //! every view whose image it falls in (masks dilated by two pixels, so that the hull contains
 //! the object) and, outside its image, by every view whose mask leaves the image's border free
 //! (it sees the whole object, so nothing outside its image is the object; a view that cuts the
-//! object cannot carve what it does not see); the sphere bounding the voxels left, with a margin, is the normalisation. When
-//! the hull touches the box, the box grows and the carving starts again.
+//! object cannot carve what it does not see); the sphere bounding the voxels left, with a
+//! margin, is the normalisation. When the hull touches the box, the box grows and the carving
+//! starts again.
 
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Matrix4, Point2, Point3, Vector3};
