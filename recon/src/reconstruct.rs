@@ -175,7 +175,7 @@ pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, mesh_resoluti
         let r = render_view(trainer, &view.camera, view.mask.as_ref(), train);
         exr::write_exr(&normals_dir.join(format!("{}.exr", view.name)), &r.normals, &["N.X", "N.Y", "N.Z"])?;
         png::write_png_u8(&normals_dir.join(format!("{}.png", view.name)), &normal_picture(&r.normals))?;
-        let Some((stokes, _)) = &r.stokes else { continue };
+        let Some(stokes) = &r.stokes else { continue };
         for (name, img) in [("s0", &stokes.s0), ("s1", &stokes.s1), ("s2", &stokes.s2)] {
             exr::write_exr(&stokes_dir.join(format!("{}_{name}.exr", view.name)), img, &["R", "G", "B"])?;
         }

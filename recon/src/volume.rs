@@ -3,7 +3,6 @@
 //! the backward pass. A forward pass is three steps: the field at the samples
 //! ([`FieldSamples`]: SDF, finite-difference normals and Laplacians, features), shading (the
 //! radiance networks and the pBRDF: per-sample Stokes), compositing along each ray.
-//! [`render_forward`] is the same pass for inference, keeping nothing for a backward pass.
 
 use crate::model::{Model, ShadingCache, ShadingInput, STOKES, VARIANCE_SCALE};
 use crate::pbrdf::dot;
@@ -397,27 +396,6 @@ impl Forward {
         };
         self.field.backward(model, params, level_weight, &d, grad);
     }
-}
-
-/// Render `rays` at sample `depths` forward only (inference: nothing is kept for a backward
-/// pass); `shade` off skips the radiance networks (opacity, depth and normals only).
-pub fn render_forward(
-    model: &Model,
-    params: &[f32],
-    level_weight: &[f32],
-    rays: &[Ray],
-    depths: &[Vec<f32>],
-    fd_step: f32,
-    shade: bool,
-) -> Vec<RayOutput> {
-    let samples = FlatSamples::new(rays, depths);
-    let field = FieldSamples::infer(model, params, level_weight, samples.points.clone(), fd_step);
-    let stokes = if shade {
-        model.radiance.shade(params, &shading_input(&samples, &field), false, None)
-    } else {
-        vec![0.0; STOKES * field.len()]
-    };
-    composite(&samples.spans, &samples.depths, &field.sdf, model.inv_s(params), &stokes, &field.normals).0
 }
 
 /// What the radiance networks see at the samples.
