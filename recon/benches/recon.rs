@@ -1,7 +1,7 @@
 //! Training step time of each preset on the spot fixture (6 views, 128x128): milliseconds per
 //! iteration, rays and samples per second, with 1 and 2 threads. Run with
 //! `cargo bench -p rmvp-recon --bench recon` (`RMVP_BENCH_STEPS` steps per measurement,
-//! `RMVP_BENCH_PRESETS=fast,paper`).
+//! `RMVP_BENCH_PRESETS=fast,dense,paper`).
 
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::data::TrainingSet;
@@ -18,7 +18,11 @@ fn main() {
     let presets = std::env::var("RMVP_BENCH_PRESETS").unwrap_or_else(|_| "fast,paper".into());
     println!("recon benchmark: spot fixture, 6 views 128x128, median step over {steps} steps after warm-up");
     for name in presets.split(',') {
-        let preset = if name == "paper" { Preset::Paper } else { Preset::Fast };
+        let preset = match name {
+            "paper" => Preset::Paper,
+            "dense" => Preset::Dense,
+            _ => Preset::Fast,
+        };
         for threads in [1, 2] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
             pool.install(|| {
