@@ -128,6 +128,9 @@ pub struct IcpOptions {
     pub coarse: bool,
     /// Starting guess when `coarse` is off.
     pub initial: Similarity,
+    /// Keep the starting guess's scale (a rigid fit: the scan's scale in the target's frame is
+    /// known, as from a scan in millimetres onto a metric reconstruction).
+    pub fixed_scale: bool,
     /// Scan points used by the fine stage at most (random subsample).
     pub max_scan_points: usize,
     /// Points sampled on the target surface (at least its vertex count).
@@ -143,6 +146,7 @@ impl Default for IcpOptions {
         Self {
             coarse: true,
             initial: Similarity::identity(),
+            fixed_scale: false,
             max_scan_points: 50_000,
             target_samples: 200_000,
             iterations: 60,
@@ -466,8 +470,8 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
     // Coarse to fine: most iterations on a tenth of the points, the last third on all of them.
     let early = options.iterations * 2 / 3;
     let few = &fine_points[..fine_points.len().min(10_000)];
-    let fine = refine(&tgt, few, start, early, (0.2, 0.04), false);
-    let fine = refine(&tgt, &fine_points, fine, options.iterations - early, (0.04, 0.02), false);
+    let fine = refine(&tgt, few, start, early, (0.2, 0.04), options.fixed_scale);
+    let fine = refine(&tgt, &fine_points, fine, options.iterations - early, (0.04, 0.02), options.fixed_scale);
     // Back to target units: scan -> normalised -> target.
     let transform = normalize.inverse().compose(&fine);
     // Statistics over all scan points, in target units; distances beyond half the target's

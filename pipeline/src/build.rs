@@ -32,7 +32,7 @@ use nalgebra::Rotation3;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use rmvp_align::icp::{align, Alignment, ALIGNED_MESH, ALIGNMENT_FILE};
-use rmvp_align::IcpOptions;
+use rmvp_align::{IcpOptions, Similarity};
 use rmvp_calib::board::board_to_y_up;
 use rmvp_calib::intrinsics::CameraCalibration;
 use rmvp_calib::masks::MASKS_FOLDER;
@@ -272,8 +272,12 @@ pub struct ScanSummary {
     /// Scan to world (`x_world = s R x_scan + t`), RMS and median residuals in world units.
     pub alignment: Alignment,
     /// The scale its units give in a millimetre world (`None`: the world's scale is arbitrary
-    /// and the units were not checked).
+    /// and the units were not checked). When known, the alignment is rigid at this scale.
     pub expected_scale: Option<f64>,
+    /// The scale that a fit with a free scale found (the units' check; it differs from the
+    /// expected one by the reference's own error of size).
+    #[serde(default)]
+    pub free_scale: f64,
     /// Median scan-to-reference distance over the reference's bounding-box diagonal.
     pub median_distance_relative: f64,
     /// Captured masks against the scan's silhouettes: mean IoU over the views.
@@ -613,12 +617,13 @@ fn finish_stage(record: &mut BuildRecord, out: &Path, name: &str, clock: Instant
 }
 
 /// Align `scan` onto `reference` (world frame) by ICP with scale, check it (its units where
-/// the world is in millimetres, `world_mm`; its fit always), and write `dir/alignment.json` and
+/// the world is in millimetres, `world_mm`, then refit rigidly at the scale they give; its
+/// fit always), and write `dir/alignment.json` and
 /// `dir/aligned.ply`. The masks' IoU fields are left for the ground-truth stage.
 pub fn align_scan(scan: &ScanInput, reference: &Mesh, world_mm: bool, dir: &Path) -> Result<ScanSummary> {
     let refuse = |why: String| Error::Scan { path: scan.path.clone(), why };
     let mesh = Mesh::read(&scan.path)?;
-    let alignment = align(&mesh, reference, &IcpOptions::default())?;
+    let mut alignment = align(&mesh, reference, &IcpOptions::default())?;
     let (lo, hi) = reference.bounds().ok_or_else(|| refuse("the reference reconstruction is empty".into()))?;
     let size = Vector3::from(hi).cast::<f64>().metric_distance(&Vector3::from(lo).cast::<f64>());
     let relative = alignment.median_distance / size;
@@ -643,6 +648,19 @@ pub fn align_scan(scan: &ScanInput, reference: &Mesh, world_mm: bool, dir: &Path
             )));
         }
     }
+    let free_scale = alignment.transform.s;
+    if let Some(expected) = expected_scale {
+        // Units known in a metric world: the scale is known too, and the reference's own error
+        // of size (tenths of a percent) must not pass into the ground truth. Refit rigidly at
+        // that scale, from the free fit's pose about the scan's centroid.
+        let free = alignment.transform;
+        let n = mesh.positions.len().max(1) as f64;
+        let centroid = mesh.positions.iter().map(|p| Vector3::from(p.map(|v| v as f64))).sum::<Vector3<f64>>() / n;
+        let initial = Similarity { s: expected, r: free.r, t: free.t + (free.s - expected) * (free.r * centroid) };
+        let rigid = IcpOptions { coarse: false, initial, fixed_scale: true, ..IcpOptions::default() };
+        alignment = align(&mesh, reference, &rigid)?;
+    }
+    let relative = alignment.median_distance / size;
     std::fs::create_dir_all(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
     alignment.transform.apply_to_mesh(&mesh).write(&dir.join(ALIGNED_MESH))?;
     alignment.write(&dir.join(ALIGNMENT_FILE))?;
@@ -651,6 +669,7 @@ pub fn align_scan(scan: &ScanInput, reference: &Mesh, world_mm: bool, dir: &Path
         units: scan.units,
         alignment,
         expected_scale,
+        free_scale,
         median_distance_relative: relative,
         mask_iou_mean: 0.0,
         mask_iou_min: (0.0, String::new()),
@@ -665,7 +684,6 @@ pub fn layout_folder(dataset: &Path, layout: Layout) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rmvp_align::Similarity;
     use rmvp_render::shapes::torus_knot;
 
     /// `mesh` moved by a rotation about (1, 2, 3), a translation and `scale`.
@@ -694,6 +712,31 @@ mod tests {
         // Point-to-point distance to a sampled target: its spacing, about 0.1 % of the size.
         assert!(summary.median_distance_relative < 2e-3, "{}", summary.median_distance_relative);
         assert!(dir.path().join("ok").join(ALIGNED_MESH).is_file());
+        // A reference 0.5 % too large (a reconstruction's error of size): the free fit follows
+        // it, the ground truth keeps the scan's own millimetres, rigidly placed on it.
+        let inflated = Similarity { r: Matrix3::identity(), t: Vector3::zeros(), s: 1.005 }.apply_to_mesh(&reference);
+        let summary = align_scan(&scan, &inflated, true, &dir.path().join("inflated")).unwrap();
+        assert!((summary.free_scale / 1005.0 - 1.0).abs() < 1e-3, "{}", summary.free_scale);
+        let (want, got) = (moved(&reference, 0.001), &summary.alignment.transform);
+        assert!((got.s - 1000.0).abs() < 1e-9, "{}", got.s);
+        let truth = Similarity {
+            r: Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0)), 2.0)
+                .into_inner(),
+            t: Vector3::new(30.0, -12.0, 7.0) * 0.001,
+            s: 0.001,
+        }
+        .inverse();
+        let angle = Rotation3::from_matrix(&(got.r * truth.r.transpose())).angle().to_degrees();
+        let worst = want
+            .positions
+            .iter()
+            .zip(&reference.positions)
+            .map(|(p, q)| (got.apply(&Vector3::from(p.map(|v| v as f64))) - Vector3::from(q.map(|v| v as f64))).norm())
+            .fold(0.0, f64::max);
+        eprintln!(
+            "rigid fit on a 0.5 % large reference: rotation off by {angle:.4} deg, vertices within {worst:.3} mm"
+        );
+        assert!(angle < 0.1 && worst < 0.5, "{angle} deg, {worst} mm");
         // The same file said to be in millimetres: refused, naming it and the scale.
         let wrong = ScanInput { path: metres, units: LengthUnit::Mm };
         let err = align_scan(&wrong, &reference, true, &dir.path().join("wrong")).unwrap_err();

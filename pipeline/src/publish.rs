@@ -320,9 +320,13 @@ fn datasheet(options: &PublishOptions, objects: &[(String, BuildRecord, Scene)])
         );
         if let (Some(scan), Some(reference)) = (&record.scan, &record.reference) {
             let a = &scan.alignment;
+            let fit = match scan.expected_scale {
+                Some(_) => format!("rigidly at its units' scale (a free scale would be {:.5})", scan.free_scale),
+                None => "with scale".to_string(),
+            };
             let _ = writeln!(
                 s,
-                "- Ground truth: laser scan `{}` ({:?}) aligned by ICP with scale onto a reference reconstruction \
+                "- Ground truth: laser scan `{}` ({:?}) aligned by ICP {fit} onto a reference reconstruction \
                  from all {} views ({:?} preset, {} iterations): scale {:.5}, RMS point-to-plane {:.4}, median \
                  distance {:.4} world units ({:.3} % of the object's size), {:.1} % inliers; captured masks \
                  against the scan's silhouettes: IoU mean {:.4}, lowest {:.4} (view {}).",
