@@ -12,11 +12,10 @@
 //! Everything else is background: zero.
 
 use crate::data::dilate;
-use crate::model::{ShadingInput, STOKES};
-use crate::samples::FieldSamples;
+use crate::model::STOKES;
 use crate::trace::{sphere_trace, TraceLimits, TraceRay};
 use crate::train::Trainer;
-use crate::volume::Ray;
+use crate::volume::{shade_points, Ray};
 use rayon::prelude::*;
 use rmvp_dataset::{Camera, Image, Stokes};
 
@@ -112,27 +111,12 @@ pub fn render_view(trainer: &Trainer, camera: &Camera, mask: Option<&Image<u8>>,
     let shaded: Vec<(usize, [f32; 3], [f32; STOKES])> = surface
         .par_chunks(CHUNK)
         .flat_map_iter(|chunk| {
-            let points: Vec<f32> = chunk.iter().flat_map(|(_, r, t)| r.at(*t)).collect();
-            let field = FieldSamples::infer(model, params, &level_weight, points, fd_step);
-            let stokes = if with_stokes {
-                let view: Vec<f32> = chunk.iter().flat_map(|(_, r, _)| r.dir.map(|d| -d)).collect();
-                let frame_x: Vec<f32> = chunk.iter().flat_map(|(_, r, _)| r.frame_x).collect();
-                let frame_y: Vec<f32> = chunk.iter().flat_map(|(_, r, _)| r.frame_y).collect();
-                let input = ShadingInput {
-                    points: &field.points,
-                    normals: &field.normals,
-                    features: &field.features,
-                    view: &view,
-                    frame_x: &frame_x,
-                    frame_y: &frame_y,
-                };
-                model.radiance.shade(params, &input, false, None)
-            } else {
-                vec![0.0; STOKES * chunk.len()]
-            };
-            let normals: Vec<[f32; 3]> = field.normals.chunks_exact(3).map(|n| [n[0], n[1], n[2]]).collect();
-            let stokes: Vec<[f32; STOKES]> =
-                stokes.chunks_exact(STOKES).map(|s| std::array::from_fn(|i| s[i])).collect();
+            let rays: Vec<Ray> = chunk.iter().map(|c| c.1).collect();
+            let depths: Vec<f32> = chunk.iter().map(|c| c.2).collect();
+            let (field, stokes) = shade_points(model, params, &level_weight, &rays, &depths, fd_step, with_stokes);
+            let stokes = stokes.unwrap_or_else(|| vec![0.0; STOKES * chunk.len()]);
+            let normals = field.normals.chunks_exact(3).map(|n| [n[0], n[1], n[2]]);
+            let stokes = stokes.chunks_exact(STOKES).map(|s| std::array::from_fn(|i| s[i]));
             chunk.iter().zip(normals).zip(stokes).map(|((c, n), s)| (c.0, n, s)).collect::<Vec<_>>()
         })
         .collect();

@@ -398,6 +398,24 @@ impl Forward {
     }
 }
 
+/// The field at one point per ray, `rays[i].at(depths[i])`, and with `shade` the radiance
+/// networks' Stokes there (n x 9), forward only: surface rendering at sphere-traced hits.
+pub fn shade_points(
+    model: &Model,
+    params: &[f32],
+    level_weight: &[f32],
+    rays: &[Ray],
+    depths: &[f32],
+    fd_step: f32,
+    shade: bool,
+) -> (FieldSamples, Option<Vec<f32>>) {
+    let depths: Vec<Vec<f32>> = depths.iter().map(|&t| vec![t]).collect();
+    let samples = FlatSamples::new(rays, &depths);
+    let field = FieldSamples::infer(model, params, level_weight, samples.points.clone(), fd_step);
+    let stokes = shade.then(|| model.radiance.shade(params, &shading_input(&samples, &field), false, None));
+    (field, stokes)
+}
+
 /// What the radiance networks see at the samples.
 fn shading_input<'a>(samples: &'a FlatSamples, field: &'a FieldSamples) -> ShadingInput<'a> {
     ShadingInput {
