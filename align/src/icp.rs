@@ -34,6 +34,17 @@ impl Similarity {
         Self { r: Matrix3::identity(), t: Vector3::zeros(), s: 1.0 }
     }
 
+    /// A uniform scaling about the origin.
+    pub fn scaling(s: f64) -> Self {
+        Self { s, ..Self::identity() }
+    }
+
+    /// The same rotation at scale `s`, translated so that `point` still lands where `self`
+    /// puts it.
+    pub fn rescaled_about(&self, s: f64, point: &Vector3<f64>) -> Self {
+        Self { r: self.r, t: self.t + (self.s - s) * (self.r * point), s }
+    }
+
     /// Apply to a point.
     pub fn apply(&self, p: &Vector3<f64>) -> Vector3<f64> {
         self.s * (self.r * p) + self.t

@@ -32,7 +32,7 @@ use nalgebra::Rotation3;
 use nalgebra::{Matrix3, Vector3};
 use rayon::prelude::*;
 use rmvp_align::icp::{align, Alignment, ALIGNED_MESH, ALIGNMENT_FILE};
-use rmvp_align::{IcpOptions, Similarity};
+use rmvp_align::IcpOptions;
 use rmvp_calib::board::board_to_y_up;
 use rmvp_calib::intrinsics::CameraCalibration;
 use rmvp_calib::masks::MASKS_FOLDER;
@@ -653,10 +653,9 @@ pub fn align_scan(scan: &ScanInput, reference: &Mesh, world_mm: bool, dir: &Path
         // Units known in a metric world: the scale is known too, and the reference's own error
         // of size (tenths of a percent) must not pass into the ground truth. Refit rigidly at
         // that scale, from the free fit's pose about the scan's centroid.
-        let free = alignment.transform;
         let n = mesh.positions.len().max(1) as f64;
         let centroid = mesh.positions.iter().map(|p| Vector3::from(p.map(|v| v as f64))).sum::<Vector3<f64>>() / n;
-        let initial = Similarity { s: expected, r: free.r, t: free.t + (free.s - expected) * (free.r * centroid) };
+        let initial = alignment.transform.rescaled_about(expected, &centroid);
         let rigid = IcpOptions { coarse: false, initial, fixed_scale: true, ..IcpOptions::default() };
         alignment = align(&mesh, reference, &rigid)?;
     }
@@ -684,12 +683,17 @@ pub fn layout_folder(dataset: &Path, layout: Layout) -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rmvp_align::Similarity;
     use rmvp_render::shapes::torus_knot;
 
     /// `mesh` moved by a rotation about (1, 2, 3), a translation and `scale`.
-    fn moved(mesh: &Mesh, scale: f64) -> Mesh {
+    fn placement(scale: f64) -> Similarity {
         let r = Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0)), 2.0);
-        Similarity { r: r.into_inner(), t: Vector3::new(30.0, -12.0, 7.0) * scale, s: scale }.apply_to_mesh(mesh)
+        Similarity { r: r.into_inner(), t: Vector3::new(30.0, -12.0, 7.0) * scale, s: scale }
+    }
+
+    fn moved(mesh: &Mesh, scale: f64) -> Mesh {
+        placement(scale).apply_to_mesh(mesh)
     }
 
     fn write_scan(dir: &Path, mesh: &Mesh) -> PathBuf {
@@ -702,7 +706,7 @@ mod tests {
     fn scans_are_aligned_in_their_units_and_refused_in_others_or_when_they_do_not_fit() {
         let dir = tempfile::tempdir().unwrap();
         // The reference in a millimetre world: the spot 70 mm in radius.
-        let reference = Similarity { r: Matrix3::identity(), t: Vector3::zeros(), s: 70.0 }
+        let reference = Similarity::scaling(70.0)
             .apply_to_mesh(&rmvp_render::default_mesh());
         // A scan in metres, elsewhere and turned.
         let metres = write_scan(dir.path(), &moved(&reference, 0.001));
@@ -714,24 +718,19 @@ mod tests {
         assert!(dir.path().join("ok").join(ALIGNED_MESH).is_file());
         // A reference 0.5 % too large (a reconstruction's error of size): the free fit follows
         // it, the ground truth keeps the scan's own millimetres, rigidly placed on it.
-        let inflated = Similarity { r: Matrix3::identity(), t: Vector3::zeros(), s: 1.005 }.apply_to_mesh(&reference);
+        let inflated = Similarity::scaling(1.005).apply_to_mesh(&reference);
         let summary = align_scan(&scan, &inflated, true, &dir.path().join("inflated")).unwrap();
         assert!((summary.free_scale / 1005.0 - 1.0).abs() < 1e-3, "{}", summary.free_scale);
-        let (want, got) = (moved(&reference, 0.001), &summary.alignment.transform);
+        let got = &summary.alignment.transform;
         assert!((got.s - 1000.0).abs() < 1e-9, "{}", got.s);
-        let truth = Similarity {
-            r: Rotation3::from_axis_angle(&nalgebra::Unit::new_normalize(Vector3::new(1.0, 2.0, 3.0)), 2.0)
-                .into_inner(),
-            t: Vector3::new(30.0, -12.0, 7.0) * 0.001,
-            s: 0.001,
-        }
-        .inverse();
-        let angle = Rotation3::from_matrix(&(got.r * truth.r.transpose())).angle().to_degrees();
-        let worst = want
+        // Reference -> scan -> world: the identity when the scan is placed exactly.
+        let error = got.compose(&placement(0.001));
+        let angle = error.angle_deg();
+        let worst = reference
             .positions
             .iter()
-            .zip(&reference.positions)
-            .map(|(p, q)| (got.apply(&Vector3::from(p.map(|v| v as f64))) - Vector3::from(q.map(|v| v as f64))).norm())
+            .map(|q| Vector3::from(q.map(|v| v as f64)))
+            .map(|q| (error.apply(&q) - q).norm())
             .fold(0.0, f64::max);
         eprintln!(
             "rigid fit on a 0.5 % large reference: rotation off by {angle:.4} deg, vertices within {worst:.3} mm"
@@ -746,7 +745,7 @@ mod tests {
         // In a world of arbitrary scale the units are not checked.
         assert!(align_scan(&wrong, &reference, false, &dir.path().join("free")).is_ok());
         // Another object: refused for its distance.
-        let knot = Similarity { r: Matrix3::identity(), t: Vector3::zeros(), s: 70.0 }
+        let knot = Similarity::scaling(70.0)
             .apply_to_mesh(&torus_knot(2, 3, 0.3, 120, 16));
         let other = ScanInput { path: write_scan(dir.path(), &knot), units: LengthUnit::Mm };
         let err = align_scan(&other, &reference, true, &dir.path().join("other")).unwrap_err();
