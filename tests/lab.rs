@@ -6,6 +6,7 @@
 //! and `rmvp recon` on the release's six-view split, judged by `rmvp eval` against the
 //! release's ground truth and against the simulator's, beside the same run with the true poses
 //! and masks. Failures of each step are refused by name, leaving the session as it was.
+
 use nalgebra::Vector3;
 use rmvp_align::normal_errors;
 use rmvp_align::{surface_metrics, Similarity, SurfaceOptions};
@@ -312,7 +313,8 @@ fn a_lab_session_becomes_posed_masked_views() {
         evaluated["chamfer"].as_f64().unwrap()
     );
     // One 400-iteration run each: the gap seen over runs (captured inputs differ in noise) was
-    // 0.07-1.66 degrees, so 2 here; the release judging it is exact to 0.1.
+    // 0.07-1.66 degrees, so 2 here; the release's ground truth judged it within 0.35 of the
+    // simulator's, so 1.5.
     assert!((from_release - with_truth).abs() < 2.0, "{from_release:.2} vs {with_truth:.2}");
     assert!((judged - from_release).abs() < 1.5, "{judged:.2} vs {from_release:.2}");
 }
