@@ -706,8 +706,7 @@ mod tests {
     fn scans_are_aligned_in_their_units_and_refused_in_others_or_when_they_do_not_fit() {
         let dir = tempfile::tempdir().unwrap();
         // The reference in a millimetre world: the spot 70 mm in radius.
-        let reference = Similarity::scaling(70.0)
-            .apply_to_mesh(&rmvp_render::default_mesh());
+        let reference = Similarity::scaling(70.0).apply_to_mesh(&rmvp_render::default_mesh());
         // A scan in metres, elsewhere and turned.
         let metres = write_scan(dir.path(), &moved(&reference, 0.001));
         let scan = ScanInput { path: metres.clone(), units: LengthUnit::M };
@@ -745,8 +744,7 @@ mod tests {
         // In a world of arbitrary scale the units are not checked.
         assert!(align_scan(&wrong, &reference, false, &dir.path().join("free")).is_ok());
         // Another object: refused for its distance.
-        let knot = Similarity::scaling(70.0)
-            .apply_to_mesh(&torus_knot(2, 3, 0.3, 120, 16));
+        let knot = Similarity::scaling(70.0).apply_to_mesh(&torus_knot(2, 3, 0.3, 120, 16));
         let other = ScanInput { path: write_scan(dir.path(), &knot), units: LengthUnit::Mm };
         let err = align_scan(&other, &reference, true, &dir.path().join("other")).unwrap_err();
         assert!(err.to_string().contains("does not fit"), "{err}");

@@ -3,7 +3,7 @@
 //! integrated directional encoding), combined into per-sample Stokes vectors by [`crate::pbrdf`].
 
 use crate::engine::encoding::{ide, positional_encoding, IDE_WIDTH};
-use crate::engine::{Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
+use crate::engine::{hashgrid, Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
 use crate::pbrdf::{degrees, dot, double_azimuth};
 use rmvp_dataset::rng::Rng;
 use serde::{Deserialize, Serialize};
@@ -100,6 +100,15 @@ pub struct Field {
     features: usize,
 }
 
+/// The hash grid's share of a backward pass, kept apart so that a batch's gradient need not
+/// span the grid's tables (most of the parameters): where the grid was looked up, and the
+/// gradient of its encoding there.
+#[derive(Default)]
+pub struct GridGradient {
+    points: Vec<f32>,
+    d_encoding: Vec<f32>,
+}
+
 /// What [`Field::forward`] keeps for [`Field::backward`].
 #[derive(Default)]
 pub struct FieldCache {
@@ -108,10 +117,11 @@ pub struct FieldCache {
 }
 
 impl Field {
+    /// The SDF network's parameters reserved in `layout`; the hash grid's tables (if any) are
+    /// reserved later, by [`Field::reserve_grid`], after every network's.
     fn new(layout: &mut ParamLayout, config: &ModelConfig) -> Self {
-        let grid = config.grid.map(|(levels, log2, base, finest)| HashGrid::new(layout, levels, log2, base, finest));
-        let encoded = match &grid {
-            Some(g) => g.outputs(),
+        let encoded = match config.grid {
+            Some((levels, ..)) => levels * hashgrid::FEATURES,
             None => 6 * config.frequencies,
         };
         let mlp = Mlp::new(
@@ -123,7 +133,12 @@ impl Field {
             Activation::Softplus(100.0),
             config.sdf_skip,
         );
-        Self { grid, frequencies: config.frequencies, mlp, features: config.features }
+        Self { grid: None, frequencies: config.frequencies, mlp, features: config.features }
+    }
+
+    /// Reserve the hash grid's tables of `config` at the end of `layout`.
+    fn reserve_grid(&mut self, layout: &mut ParamLayout, config: &ModelConfig) {
+        self.grid = config.grid.map(|(levels, log2, base, finest)| HashGrid::new(layout, levels, log2, base, finest));
     }
 
     /// Values per point: the SDF then the features.
@@ -169,13 +184,28 @@ impl Field {
         self.mlp.forward(params, &input, points.len() / 3, &mut cache.mlp)
     }
 
-    /// Add the parameter gradients of `d_out` (n x outputs) into `grad`.
-    pub fn backward(&self, params: &[f32], cache: &FieldCache, level_weight: &[f32], d_out: &[f32], grad: &mut [f32]) {
+    /// Add the network's parameter gradients of `d_out` (n x outputs) into `grad` (which
+    /// needs to cover the networks only, [`Model::network_params`]); the hash grid's are
+    /// returned, to be added by [`Field::add_grid_gradients`].
+    pub fn backward(&self, params: &[f32], cache: &FieldCache, d_out: &[f32], grad: &mut [f32]) -> GridGradient {
         let d_in = self.mlp.backward(params, &cache.mlp, d_out, grad);
+        match &self.grid {
+            Some(_) => {
+                let width = self.mlp.inputs();
+                let d_encoding = d_in.chunks_exact(width).flat_map(|row| row[3..].iter().copied()).collect();
+                GridGradient { points: cache.points.clone(), d_encoding }
+            }
+            None => GridGradient::default(),
+        }
+    }
+
+    /// Add the hash grid's parameter gradients of `parts` into `grad` (all parameters),
+    /// level by level in parallel, each level's parts in order.
+    pub fn add_grid_gradients(&self, parts: &[&GridGradient], level_weight: &[f32], grad: &mut [f32]) {
         if let Some(g) = &self.grid {
-            let width = self.mlp.inputs();
-            let d_enc: Vec<f32> = d_in.chunks_exact(width).flat_map(|row| row[3..].iter().copied()).collect();
-            g.backward(&cache.points, level_weight, &d_enc, grad);
+            let batches: Vec<(&[f32], &[f32])> =
+                parts.iter().map(|p| (p.points.as_slice(), p.d_encoding.as_slice())).collect();
+            g.backward_batches(&batches, level_weight, grad);
         }
     }
 
@@ -451,6 +481,7 @@ pub struct Model {
     pub radiance: Radiance,
     /// Offset of the variance parameter (`inv_s = exp(VARIANCE_SCALE * variance)`).
     pub variance: usize,
+    network_params: usize,
 }
 
 /// NeuS's initial variance parameter.
@@ -461,11 +492,21 @@ pub const VARIANCE_SCALE: f32 = 10.0;
 impl Model {
     /// Build the shapes of `config`.
     pub fn new(config: ModelConfig) -> Self {
+        // The networks first, the hash grid's tables last: a batch's network gradient is then a
+        // short prefix of the parameter vector (see `Field::backward`).
         let mut layout = ParamLayout::default();
-        let field = Field::new(&mut layout, &config);
+        let mut field = Field::new(&mut layout, &config);
         let radiance = Radiance::new(&mut layout, &config);
         let variance = layout.reserve(1, crate::engine::Group::Variance);
-        Self { config, layout, field, radiance, variance }
+        let network_params = layout.len();
+        field.reserve_grid(&mut layout, &config);
+        Self { config, layout, field, radiance, variance, network_params }
+    }
+
+    /// Parameters of the networks and the variance: the vector's first ones, before the hash
+    /// grid's tables.
+    pub fn network_params(&self) -> usize {
+        self.network_params
     }
 
     /// Initial parameters (geometric initialisation to a sphere of radius 0.5).

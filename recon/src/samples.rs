@@ -3,7 +3,7 @@
 //! evaluations per point, so that no second-order gradient is ever needed; and the backward
 //! pass from gradients on each of those quantities to the parameters.
 
-use crate::model::{FieldCache, Model};
+use crate::model::{FieldCache, GridGradient, Model};
 use crate::pbrdf::dot;
 
 /// The six finite-difference offsets, in the order the field evaluates them.
@@ -110,8 +110,9 @@ impl FieldSamples {
         self.sdf.is_empty()
     }
 
-    /// Add the parameter gradients of `d` into `grad`.
-    pub fn backward(&self, model: &Model, params: &[f32], level_weight: &[f32], d: &FieldGrad, grad: &mut [f32]) {
+    /// Add the networks' parameter gradients of `d` into `grad`; the hash grid's are returned
+    /// (see [`Field::backward`](crate::model::Field::backward)).
+    pub fn backward(&self, model: &Model, params: &[f32], d: &FieldGrad, grad: &mut [f32]) -> GridGradient {
         let n = self.len();
         let width = model.field.outputs();
         let mut d_out = vec![0f32; 7 * n * width];
@@ -134,6 +135,6 @@ impl FieldSamples {
                 d_out[((2 + 2 * axis) * n + i) * width] -= step;
             }
         }
-        model.field.backward(params, &self.cache, level_weight, &d_out, grad);
+        model.field.backward(params, &self.cache, &d_out, grad)
     }
 }

@@ -9,7 +9,7 @@ use crate::data::TrainingSet;
 use crate::engine::{Adam, AdamConfig};
 use crate::geometric::{tangent_loss, tangents};
 use crate::losses::{curvature, eikonal, l1, mask_bce, PerTerm, Term};
-use crate::model::{Model, ModelConfig, Preset, STOKES};
+use crate::model::{GridGradient, Model, ModelConfig, Preset, STOKES};
 use crate::volume::{sample_depths, Forward, RayGrad, Sampling};
 use crate::{Error, Result};
 use rayon::prelude::*;
@@ -261,19 +261,23 @@ impl Trainer {
 
         let chunks: Vec<(usize, usize)> =
             (0..batch.len()).step_by(CHUNK_RAYS).map(|s| (s, (s + CHUNK_RAYS).min(batch.len()))).collect();
-        let results: Vec<(Vec<f32>, ChunkSums)> = chunks
+        let results: Vec<(Vec<f32>, GridGradient, ChunkSums)> = chunks
             .par_iter()
             .map(|&(a, b)| self.chunk(&batch[a..b], &jitter[a..b], &level_weight, fd_step, warm, use_geometric, &norm))
             .collect();
+        // Summed in chunk order (the networks') and level by level in chunk order (the hash
+        // grid's): the same step whatever the number of threads.
         let mut grad = vec![0f32; self.params.len()];
         let mut sums = ChunkSums::default();
-        for (g, s) in results {
-            grad.iter_mut().zip(g).for_each(|(a, b)| *a += b);
+        for (g, _, s) in &results {
+            grad[..g.len()].iter_mut().zip(g).for_each(|(a, b)| *a += b);
             for term in Term::ALL {
                 sums.losses[term] += s.losses[term];
             }
             sums.samples += s.samples;
         }
+        let grid: Vec<&GridGradient> = results.iter().map(|r| &r.1).collect();
+        self.model.field.add_grid_gradients(&grid, &level_weight, &mut grad);
         let w = &self.config.weights;
         let mut report = StepReport {
             iteration: it,
@@ -318,7 +322,7 @@ impl Trainer {
         warm: bool,
         use_geometric: bool,
         norm: &Norms,
-    ) -> (Vec<f32>, ChunkSums) {
+    ) -> (Vec<f32>, GridGradient, ChunkSums) {
         let set = &self.set;
         let rays: Vec<_> = batch.iter().map(|&(v, p)| set.ray(v, p)).collect();
         let depths = sample_depths(&self.model, &self.params, level_weight, &rays, self.config.sampling, jitter);
@@ -381,9 +385,9 @@ impl Trainer {
                 w[Term::Curvature] * d / norm.samples
             })
             .collect();
-        let mut grad = vec![0f32; self.params.len()];
-        fwd.backward(&self.model, &self.params, level_weight, &grads, &d_gradients, &d_laplacians, &mut grad);
-        (grad, sums)
+        let mut grad = vec![0f32; self.model.network_params()];
+        let grid = fwd.backward(&self.model, &self.params, &grads, &d_gradients, &d_laplacians, &mut grad);
+        (grad, grid, sums)
     }
 
     /// Save parameters, optimiser state and iteration to `path` (atomically).
@@ -420,6 +424,9 @@ impl Trainer {
         let header: CheckpointHeader =
             serde_json::from_slice(bytes.get(16..16 + len).ok_or_else(|| bad("truncated header"))?)
                 .map_err(|e| bad(&format!("header: {e}")))?;
+        if header.format != CHECKPOINT_FORMAT {
+            return Err(bad(&format!("format {}, this version reads {CHECKPOINT_FORMAT}", header.format)));
+        }
         let mut trainer = Self::new(header.config, set);
         let n = trainer.params.len();
         if header.parameters != n {
@@ -455,7 +462,8 @@ struct Norms {
 }
 
 const CHECKPOINT_MAGIC: &[u8; 8] = b"RMVPCKPT";
-const CHECKPOINT_FORMAT: &str = "rmvp-recon-checkpoint-1";
+/// The checkpoint's format: 2 since the hash grid's tables come after the networks.
+const CHECKPOINT_FORMAT: &str = "rmvp-recon-checkpoint-2";
 
 #[derive(Serialize, Deserialize)]
 struct CheckpointHeader {

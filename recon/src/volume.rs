@@ -4,7 +4,7 @@
 //! ([`FieldSamples`]: SDF, finite-difference normals and Laplacians, features), shading (the
 //! radiance networks and the pBRDF: per-sample Stokes), compositing along each ray.
 
-use crate::model::{Model, ShadingCache, ShadingInput, STOKES, VARIANCE_SCALE};
+use crate::model::{GridGradient, Model, ShadingCache, ShadingInput, STOKES, VARIANCE_SCALE};
 use crate::pbrdf::dot;
 use crate::samples::{FieldGrad, FieldSamples};
 
@@ -322,19 +322,18 @@ impl Forward {
     }
 
     /// Backward pass: `ray_grads` per ray, `d_gradients` (n x 3, e.g. from the Eikonal loss) on
-    /// the SDF gradients and `d_laplacians` (n, the curvature loss) on the Laplacians; adds every
-    /// parameter gradient into `grad`.
-    #[allow(clippy::too_many_arguments)]
+    /// the SDF gradients and `d_laplacians` (n, the curvature loss) on the Laplacians; adds the
+    /// networks' parameter gradients into `grad` (at least [`Model::network_params`] long) and
+    /// returns the hash grid's (for [`Field::add_grid_gradients`](crate::model::Field::add_grid_gradients)).
     pub fn backward(
         &self,
         model: &Model,
         params: &[f32],
-        level_weight: &[f32],
         ray_grads: &[RayGrad],
         d_gradients: &[f32],
         d_laplacians: &[f32],
         grad: &mut [f32],
-    ) {
+    ) -> GridGradient {
         let n = self.samples();
         let c = &self.compositing;
         let (normals, sdf) = (&self.field.normals, &self.field.sdf);
@@ -394,7 +393,7 @@ impl Forward {
             gradients: d_gradients,
             laplacians: d_laplacians,
         };
-        self.field.backward(model, params, level_weight, &d, grad);
+        self.field.backward(model, params, &d, grad)
     }
 }
 

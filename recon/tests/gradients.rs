@@ -298,7 +298,8 @@ fn volume_rendering_end_to_end() {
     let f = Forward::run(&model, &params, &lw, &rays, &depths, 0.02, false);
     assert!(f.rays.iter().any(|o| o.opacity > 0.1), "rays should cross the initial sphere");
     let mut grad = vec![0f32; params.len()];
-    f.backward(&model, &params, &lw, &grads, &d_gradients, &d_laplacians, &mut grad);
+    let grid = f.backward(&model, &params, &grads, &d_gradients, &d_laplacians, &mut grad);
+    model.field.add_grid_gradients(&[&grid], &lw, &mut grad);
     let nonzero: Vec<usize> = (0..params.len()).filter(|&i| grad[i] != 0.0).collect();
     let mut indices = pick(nonzero.len(), 400, 41).into_iter().map(|k| nonzero[k]).collect::<Vec<_>>();
     indices.push(model.variance);

@@ -124,29 +124,46 @@ fn resume_continues_bit_for_bit() {
     config.batch_rays = 64;
     config.diffuse_only = 3; // cross the warm-up boundary between stop and resume
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
+    // On one thread here, on two below: the same steps whatever the number of threads.
     let mut straight = Trainer::new(config.clone(), set.clone());
-    for _ in 0..6 {
-        straight.step();
-    }
+    rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| {
+        for _ in 0..6 {
+            straight.step();
+        }
+    });
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let mut first = Trainer::new(config, set.clone());
-    for _ in 0..2 {
-        first.step();
-    }
+    pool.install(|| {
+        for _ in 0..2 {
+            first.step();
+        }
+    });
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("checkpoint.bin");
     first.save_checkpoint(&path).unwrap();
     drop(first);
     let mut resumed = Trainer::load_checkpoint(&path, set.clone()).unwrap();
     assert_eq!(resumed.iteration, 2);
-    for _ in 0..4 {
-        resumed.step();
-    }
+    pool.install(|| {
+        for _ in 0..4 {
+            resumed.step();
+        }
+    });
     assert_eq!(resumed.iteration, straight.iteration);
     assert!(resumed.params == straight.params, "parameters differ after resume");
     assert!(resumed.adam == straight.adam, "optimiser state differs after resume");
 
-    // A truncated checkpoint is refused with the file's name.
+    // One of another format (an older layout of the parameters) is refused, saying so.
     let bytes = std::fs::read(&path).unwrap();
+    let name = b"rmvp-recon-checkpoint-";
+    let at = bytes.windows(name.len()).position(|w| w == name).expect("format in the header") + name.len();
+    let mut older = bytes.clone();
+    older[at] = b'1';
+    std::fs::write(&path, &older).unwrap();
+    let err = Trainer::load_checkpoint(&path, set.clone()).err().expect("older format refused");
+    assert!(err.to_string().contains("format rmvp-recon-checkpoint-1"), "{err}");
+
+    // A truncated checkpoint is refused with the file's name.
     std::fs::write(&path, &bytes[..bytes.len() - 10]).unwrap();
     let err = Trainer::load_checkpoint(&path, set).err().expect("truncated checkpoint refused");
     assert!(matches!(&err, Error::BadCheckpoint { path: p, problem } if *p == path && problem.contains("truncated")));

@@ -2,7 +2,9 @@
 //! per-level weights for coarse-to-fine annealing (Neuralangelo).
 
 use super::params::{Group, ParamLayout};
+use rayon::prelude::*;
 use rmvp_dataset::rng::Rng;
+use std::ops::Range;
 
 /// Features per level.
 pub const FEATURES: usize = 2;
@@ -52,6 +54,14 @@ impl HashGrid {
         params[self.offset..self.offset + n].iter_mut().for_each(|v| *v = (rng.next_f32() * 2.0 - 1.0) * 1e-4);
     }
 
+    /// Where level `level`'s table lies in the parameter vector.
+    fn table_range(&self, level: usize) -> Range<usize> {
+        let start = self.offset + level * self.table * FEATURES;
+        start..start + self.table * FEATURES
+    }
+
+    /// The eight corners of `p`'s cell at `level`: their entries' positions in the level's
+    /// table, and their trilinear weights.
     fn corners(&self, level: usize, p: [f32; 3]) -> Corners {
         let res = self.resolutions[level];
         let side = res as usize + 1;
@@ -64,7 +74,6 @@ impl HashGrid {
             cell[a] = c;
             frac[a] = x - c as f32;
         }
-        let base = self.offset + level * self.table * FEATURES;
         let mut out = Corners { index: [0; 8], weight: [0.0; 8] };
         for k in 0..8 {
             let bit = [k & 1, (k >> 1) & 1, (k >> 2) & 1];
@@ -81,7 +90,7 @@ impl HashGrid {
                     (c[0] as u32) ^ (c[1] as u32).wrapping_mul(2_654_435_761) ^ (c[2] as u32).wrapping_mul(805_459_861);
                 h as usize & (self.table - 1)
             };
-            out.index[k] = base + slot * FEATURES;
+            out.index[k] = slot * FEATURES;
             out.weight[k] = w;
         }
         out
@@ -92,6 +101,7 @@ impl HashGrid {
     pub fn encode(&self, params: &[f32], points: &[f32], level_weight: &[f32], out: &mut [f32]) {
         let width = self.outputs();
         for (level, &lw) in level_weight.iter().enumerate().take(self.levels) {
+            let table = &params[self.table_range(level)];
             for (p, o) in points.chunks_exact(3).zip(out.chunks_exact_mut(width)) {
                 let o = &mut o[level * FEATURES..(level + 1) * FEATURES];
                 if lw == 0.0 {
@@ -101,7 +111,7 @@ impl HashGrid {
                 let corners = self.corners(level, [p[0], p[1], p[2]]);
                 let mut f = [0f32; FEATURES];
                 for k in 0..8 {
-                    let entry = &params[corners.index[k]..corners.index[k] + FEATURES];
+                    let entry = &table[corners.index[k]..corners.index[k] + FEATURES];
                     for j in 0..FEATURES {
                         f[j] += corners.weight[k] * entry[j];
                     }
@@ -113,23 +123,33 @@ impl HashGrid {
         }
     }
 
-    /// Scatter `d_out` (n x outputs) into the table gradients.
+    /// Scatter `d_out` (n x outputs) at `points` into the table gradients.
     pub fn backward(&self, points: &[f32], level_weight: &[f32], d_out: &[f32], grad: &mut [f32]) {
+        self.backward_batches(&[(points, d_out)], level_weight, grad);
+    }
+
+    /// Scatter several batches' `(points, d_out)` into the table gradients: the levels in
+    /// parallel, each level's batches in order (the same sums whatever the number of threads).
+    pub fn backward_batches(&self, batches: &[(&[f32], &[f32])], level_weight: &[f32], grad: &mut [f32]) {
         let width = self.outputs();
-        for (level, &lw) in level_weight.iter().enumerate().take(self.levels) {
+        let tables = &mut grad[self.offset..self.offset + self.levels * self.table * FEATURES];
+        tables.par_chunks_mut(self.table * FEATURES).enumerate().for_each(|(level, table)| {
+            let lw = level_weight.get(level).copied().unwrap_or(0.0);
             if lw == 0.0 {
-                continue;
+                return;
             }
-            for (p, d) in points.chunks_exact(3).zip(d_out.chunks_exact(width)) {
-                let d = &d[level * FEATURES..(level + 1) * FEATURES];
-                let corners = self.corners(level, [p[0], p[1], p[2]]);
-                for k in 0..8 {
-                    let entry = &mut grad[corners.index[k]..corners.index[k] + FEATURES];
-                    for j in 0..FEATURES {
-                        entry[j] += corners.weight[k] * lw * d[j];
+            for (points, d_out) in batches {
+                for (p, d) in points.chunks_exact(3).zip(d_out.chunks_exact(width)) {
+                    let d = &d[level * FEATURES..(level + 1) * FEATURES];
+                    let corners = self.corners(level, [p[0], p[1], p[2]]);
+                    for k in 0..8 {
+                        let entry = &mut table[corners.index[k]..corners.index[k] + FEATURES];
+                        for j in 0..FEATURES {
+                            entry[j] += corners.weight[k] * lw * d[j];
+                        }
                     }
                 }
             }
-        }
+        });
     }
 }
