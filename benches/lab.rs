@@ -4,18 +4,24 @@
 //! Then the dataset stage on the object session: `rmvp dataset build` with a laser scan (the
 //! true mesh in millimetres, moved) and a panorama, each stage's time from `build.json` (the
 //! reference reconstruction apart: the dense preset, or `RMVP_BENCH_REFERENCE_ITERS`
-//! iterations of it), then `publish` (with a tar archive) and `verify`.
+//! iterations of it), then `publish` (with a tar archive) and `verify`; the reference and
+//! the aligned scan against the true object.
 //! `cargo bench --bench lab` (part of `./run bench`). The three sessions (calibration, object,
 //! empty lab) are captured once through the simulated camera into `target/tmp/bench-lab` and
 //! reused; delete that folder to capture them again.
 
+use nalgebra::Vector3;
+use rmvp_align::icp::ALIGNED_MESH;
+use rmvp_align::{surface_metrics, SurfaceOptions};
 use rmvp_calib::board::BoardSpec;
 use rmvp_calib::lab::LabSetup;
 use rmvp_calib::poses::accuracy::pose_errors;
 use rmvp_calib::poses::PoseSet;
 use rmvp_capture::simulator::{SimulatedScene, SimulatedSetup, SimulatorConfig};
 use rmvp_dataset::session::SessionManifest;
-use rmvp_dataset::Camera;
+use rmvp_dataset::{Camera, Mesh};
+use rmvp_pipeline::build::{REFERENCE_FOLDER, SCAN_FOLDER};
+use rmvp_recon::reconstruct::MESH;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -202,10 +208,8 @@ fn dataset_stage(root: &Path, lab: &Path, camera: &Path, truth: &SimulatedScene)
     let scan = out.join("scan.ply");
     let subject = truth.subject.clone().expect("the lab has a subject");
     let turn = nalgebra::Rotation3::from_euler_angles(0.4, -1.1, 2.0).into_inner();
-    rmvp_align::Similarity { r: turn, t: nalgebra::Vector3::new(-250.0, 80.0, 1200.0), s: 1.0 }
-        .apply_to_mesh(&subject)
-        .write(&scan)
-        .expect("scan");
+    let placement = rmvp_align::Similarity { r: turn, t: nalgebra::Vector3::new(-250.0, 80.0, 1200.0), s: 1.0 };
+    placement.apply_to_mesh(&subject).write(&scan).expect("scan");
     let pano = out.join("studio.exr");
     rmvp_dataset::io::exr::write_exr(&pano, &rmvp_render::envmap::procedural_image(), &["R", "G", "B"])
         .expect("panorama");
@@ -239,5 +243,22 @@ fn dataset_stage(root: &Path, lab: &Path, camera: &Path, truth: &SimulatedScene)
     println!(
         "  scan aligned: scale {:.5}, median distance {:.4} mm; masks against its silhouettes: IoU mean {:.4}",
         scan.alignment.transform.s, scan.alignment.median_distance, scan.mask_iou_mean
+    );
+    // The reference and the ground truth against the true object (the board's frame, mm): the
+    // scan's placement undone by the alignment is the identity when the fit is exact.
+    let chamfer = |path: PathBuf| {
+        let mesh = Mesh::read(&path).expect("mesh");
+        surface_metrics(&mesh, &subject, &SurfaceOptions::default()).expect("metrics").chamfer
+    };
+    let off = scan.alignment.transform.compose(&placement);
+    let centre = subject.positions.iter().map(|p| Vector3::from(p.map(|v| v as f64))).sum::<Vector3<f64>>()
+        / subject.positions.len() as f64;
+    println!(
+        "  against the true object: reference Chamfer {:.3} mm; ground truth Chamfer {:.3} mm, rotation off by \
+         {:.3} deg, centre off by {:.3} mm",
+        chamfer(dataset.join(REFERENCE_FOLDER).join(MESH)),
+        chamfer(dataset.join(SCAN_FOLDER).join(ALIGNED_MESH)),
+        off.angle_deg(),
+        (off.apply(&centre) - centre).norm()
     );
 }
