@@ -77,6 +77,10 @@ pub enum Error {
         /// The checkpoint.
         path: PathBuf,
     },
+    /// The GPU path cannot run here (no driver, no NVRTC, no GPU, a field it does not cover) or
+    /// failed.
+    #[error("CUDA: {0}")]
+    Cuda(String),
     /// A checkpoint that cannot be read back.
     #[error("{}: {problem}", path.display())]
     BadCheckpoint {

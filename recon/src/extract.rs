@@ -6,6 +6,7 @@
 
 use crate::data::Frame;
 use crate::model::Model;
+use crate::Result;
 use rayon::prelude::*;
 use rmvp_dataset::Mesh;
 use std::collections::HashMap;
@@ -15,34 +16,77 @@ use std::collections::HashMap;
 const TETRAHEDRA: [[usize; 4]; 6] =
     [[0, 1, 3, 7], [0, 3, 2, 7], [0, 2, 6, 7], [0, 6, 4, 7], [0, 4, 5, 7], [0, 5, 1, 7]];
 
-/// SDF samples on an `(n + 1)^3` grid over `[-1, 1]^3`, x fastest. Points outside the unit
-/// sphere are not evaluated (set to +1).
-pub fn sdf_grid(model: &Model, params: &[f32], level_weight: &[f32], n: usize) -> Vec<f32> {
-    let side = n + 1;
-    let coord = |i: usize| -1.0 + 2.0 * i as f32 / n as f32;
-    (0..side)
-        .into_par_iter()
-        .flat_map_iter(|z| {
-            let mut pts = Vec::new();
-            let mut slots = Vec::new();
-            let mut out = vec![1.0f32; side * side];
-            for y in 0..side {
-                for x in 0..side {
-                    let p = [coord(x), coord(y), coord(z)];
-                    if p[0] * p[0] + p[1] * p[1] + p[2] * p[2] < 1.0 {
-                        pts.extend(p);
-                        slots.push(y * side + x);
+/// Where the mesh's SDF is evaluated.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+pub enum Device {
+    /// The CPU engine, on all threads.
+    #[default]
+    Cpu,
+    /// CUDA kernels on GPU 0 (NVRTC and the driver loaded at run time).
+    Cuda,
+}
+
+/// Where surface extraction evaluates the SDF (unit-sphere frame): the CPU engine
+/// ([`CpuSdf`]) or, with the `cuda` feature, the GPU (`crate::cuda::CudaSdf`).
+pub trait SdfEvaluator: Sync {
+    /// The SDF at `points` (n x 3).
+    fn sdf(&self, points: &[f32]) -> Result<Vec<f32>>;
+    /// The SDF on the `(n + 1)^3` grid over `[-1, 1]^3`, x fastest; points outside the unit
+    /// sphere are not evaluated (set to +1).
+    fn sdf_grid(&self, n: usize) -> Result<Vec<f32>>;
+}
+
+/// The SDF by the CPU engine, on all threads.
+pub struct CpuSdf<'a> {
+    model: &'a Model,
+    params: &'a [f32],
+    level_weight: &'a [f32],
+}
+
+impl<'a> CpuSdf<'a> {
+    /// `model`'s field with `params` under the hash grid's `level_weight`.
+    pub fn new(model: &'a Model, params: &'a [f32], level_weight: &'a [f32]) -> Self {
+        Self { model, params, level_weight }
+    }
+}
+
+impl SdfEvaluator for CpuSdf<'_> {
+    fn sdf(&self, points: &[f32]) -> Result<Vec<f32>> {
+        Ok(points
+            .par_chunks(3 * 4096)
+            .flat_map_iter(|chunk| self.model.field.sdf(self.params, chunk, self.level_weight))
+            .collect())
+    }
+
+    fn sdf_grid(&self, n: usize) -> Result<Vec<f32>> {
+        let side = n + 1;
+        let coord = |i: usize| -1.0 + 2.0 * i as f32 / n as f32;
+        Ok((0..side)
+            .into_par_iter()
+            .flat_map_iter(|z| {
+                let mut pts = Vec::new();
+                let mut slots = Vec::new();
+                let mut out = vec![1.0f32; side * side];
+                for y in 0..side {
+                    for x in 0..side {
+                        let p = [coord(x), coord(y), coord(z)];
+                        if p[0] * p[0] + p[1] * p[1] + p[2] * p[2] < 1.0 {
+                            pts.extend(p);
+                            slots.push(y * side + x);
+                        }
                     }
                 }
-            }
-            for (chunk_pts, chunk_slots) in pts.chunks(3 * 4096).zip(slots.chunks(4096)) {
-                for (v, &s) in model.field.sdf(params, chunk_pts, level_weight).into_iter().zip(chunk_slots) {
-                    out[s] = v;
+                for (chunk_pts, chunk_slots) in pts.chunks(3 * 4096).zip(slots.chunks(4096)) {
+                    let values = self.model.field.sdf(self.params, chunk_pts, self.level_weight);
+                    for (v, &s) in values.into_iter().zip(chunk_slots) {
+                        out[s] = v;
+                    }
                 }
-            }
-            out
-        })
-        .collect()
+                out
+            })
+            .collect())
+    }
 }
 
 /// Triangulate the zero level set of `values` (`(n + 1)^3`, x fastest, over `[-1, 1]^3`),
@@ -128,43 +172,33 @@ pub fn marching_tetrahedra(values: &[f32], n: usize, frame: &Frame) -> Mesh {
     Mesh { positions, normals: None, faces, vertex_properties: Vec::new() }
 }
 
-/// The model's surface as a world-frame mesh, from an `n^3` grid, with vertex normals from the
-/// SDF's gradient (central differences of step `fd_step`, as in training).
-pub fn extract_mesh(
-    model: &Model,
-    params: &[f32],
-    level_weight: &[f32],
-    n: usize,
-    frame: &Frame,
-    fd_step: f32,
-) -> Mesh {
-    let mut mesh = marching_tetrahedra(&sdf_grid(model, params, level_weight, n), n, frame);
-    let normals: Vec<[f32; 3]> = mesh
+/// The surface of the SDF that `sdf` evaluates as a world-frame mesh, from an `n^3` grid,
+/// with vertex normals from the SDF's gradient (central differences of step `fd_step`, as in
+/// training).
+pub fn extract_mesh(sdf: &dyn SdfEvaluator, n: usize, frame: &Frame, fd_step: f32) -> Result<Mesh> {
+    let mut mesh = marching_tetrahedra(&sdf.sdf_grid(n)?, n, frame);
+    let probes: Vec<f32> = mesh
         .positions
-        .par_chunks(4096)
-        .flat_map_iter(|chunk| {
-            let mut pts = Vec::with_capacity(chunk.len() * 18);
-            for p in chunk {
-                let u = frame.point_from_world(&nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64));
-                for axis in 0..3 {
-                    for sign in [1.0, -1.0] {
-                        let mut q = u;
-                        q[axis] += sign * fd_step;
-                        pts.extend(q);
-                    }
-                }
-            }
-            let sdf = model.field.sdf(params, &pts, level_weight);
-            sdf.chunks_exact(6)
-                .map(|d| {
-                    let world = frame.dir_to_world([d[0] - d[1], d[2] - d[3], d[4] - d[5]]);
-                    [world.x as f32, world.y as f32, world.z as f32]
-                })
-                .collect::<Vec<_>>()
+        .par_iter()
+        .flat_map_iter(|p| {
+            let u = frame.point_from_world(&nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64));
+            (0..6).flat_map(move |k| {
+                let mut q = u;
+                q[k / 2] += if k % 2 == 0 { fd_step } else { -fd_step };
+                q
+            })
+        })
+        .collect();
+    let values = sdf.sdf(&probes)?;
+    let normals = values
+        .chunks_exact(6)
+        .map(|d| {
+            let world = frame.dir_to_world([d[0] - d[1], d[2] - d[3], d[4] - d[5]]);
+            [world.x as f32, world.y as f32, world.z as f32]
         })
         .collect();
     mesh.normals = Some(normals);
-    mesh
+    Ok(mesh)
 }
 
 #[cfg(test)]

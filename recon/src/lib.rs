@@ -9,7 +9,8 @@
 //!   [`trace`]: sphere tracing of the SDF; [`geometric`]: the AoP tangent-space loss with
 //!   visibility; [`losses`]: the loss terms by name;
 //! - [`data`]: the training set in the unit sphere; [`train`]: steps and checkpoints;
-//! - [`extract`]: marching tetrahedra; [`output`]: normal maps and re-rendered Stokes where
+//! - [`extract`]: marching tetrahedra (the SDF on the CPU or, with the `cuda` feature, by
+//!   the kernels of `cuda` on a GPU); [`output`]: normal maps and re-rendered Stokes where
 //!   the surface is (forward only);
 //!   [`reconstruct`]: a whole run in a folder.
 
@@ -17,6 +18,8 @@
 // Numeric kernels index several arrays with one counter; iterators would hide the formulas.
 #![allow(clippy::needless_range_loop)]
 
+#[cfg(feature = "cuda")]
+pub mod cuda;
 pub mod data;
 pub mod engine;
 pub mod error;

@@ -145,6 +145,16 @@ impl Field {
         1 + self.features
     }
 
+    /// The hash grid (None for the MLP preset).
+    pub fn grid(&self) -> Option<&HashGrid> {
+        self.grid.as_ref()
+    }
+
+    /// The SDF network.
+    pub fn mlp(&self) -> &Mlp {
+        &self.mlp
+    }
+
     /// Hash-grid levels (0 for the MLP preset).
     pub fn levels(&self) -> usize {
         self.grid.as_ref().map_or(0, |g| g.levels())

@@ -2,7 +2,7 @@
 //! (resumable), then the mesh, normal maps, re-rendered Stokes and a comparison picture.
 
 use crate::data::TrainingSet;
-use crate::extract::extract_mesh;
+use crate::extract::{extract_mesh, CpuSdf, Device};
 use crate::model::Preset;
 use crate::output::render_view;
 use crate::train::{StepReport, TrainConfig, Trainer};
@@ -30,6 +30,8 @@ pub struct Options {
     pub resume: bool,
     /// Marching grid cells per axis.
     pub mesh_resolution: usize,
+    /// Where the mesh's SDF is evaluated (CPU engine or CUDA kernels).
+    pub mesh_device: Device,
     /// Iterations between checkpoints.
     pub checkpoint_every: u32,
     /// Rays per batch (default: the preset's).
@@ -53,6 +55,7 @@ impl Default for Options {
             geometric: true,
             resume: false,
             mesh_resolution: 256,
+            mesh_device: Device::Cpu,
             checkpoint_every: 500,
             batch_rays: None,
             seed: 0,
@@ -97,6 +100,8 @@ pub fn reconstruct(
     if !options.photometric && !options.geometric {
         return Err(Error::BothCuesOff);
     }
+    // A mesh device that cannot run is said before training, not after it.
+    check_device(options.mesh_device)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let config = options.config();
     let set = TrainingSet::from_scene(scene, config.margin)?;
@@ -143,18 +148,43 @@ pub fn reconstruct(
         }
     }
     if options.view_outputs {
-        write_results(&trainer, scene, out, options.mesh_resolution)?;
+        write_results(&trainer, scene, out, options.mesh_resolution, options.mesh_device)?;
     } else {
-        write_mesh(&trainer, out, options.mesh_resolution)?;
+        write_mesh(&trainer, out, options.mesh_resolution, options.mesh_device)?;
     }
     Ok(trainer)
 }
 
-/// The extracted surface alone, `out/mesh.ply` (world frame).
-pub fn write_mesh(trainer: &Trainer, out: &Path, mesh_resolution: usize) -> Result<()> {
+/// Whether `device` can evaluate the mesh's SDF here.
+pub fn check_device(device: Device) -> Result<()> {
+    match device {
+        Device::Cpu => Ok(()),
+        #[cfg(feature = "cuda")]
+        Device::Cuda => crate::cuda::probe().map(drop),
+        #[cfg(not(feature = "cuda"))]
+        Device::Cuda => Err(no_cuda_support()),
+    }
+}
+
+#[cfg(not(feature = "cuda"))]
+fn no_cuda_support() -> Error {
+    Error::Cuda("this build has no CUDA support (rmvp-recon's `cuda` feature)".into())
+}
+
+/// The extracted surface alone, `out/mesh.ply` (world frame), its SDF evaluated on `device`.
+pub fn write_mesh(trainer: &Trainer, out: &Path, mesh_resolution: usize, device: Device) -> Result<()> {
     let lw = trainer.level_weight();
-    let (model, params) = (&trainer.model, &trainer.params);
-    let mesh = extract_mesh(model, params, &lw, mesh_resolution, &trainer.set.frame, trainer.fd_step(&lw));
+    let (model, params, frame, fd_step) = (&trainer.model, &trainer.params, &trainer.set.frame, trainer.fd_step(&lw));
+    let mesh = match device {
+        Device::Cpu => extract_mesh(&CpuSdf::new(model, params, &lw), mesh_resolution, frame, fd_step)?,
+        #[cfg(feature = "cuda")]
+        Device::Cuda => {
+            let gpu = crate::cuda::CudaSdf::new(&model.field, params, &lw)?;
+            extract_mesh(&gpu, mesh_resolution, frame, fd_step)?
+        }
+        #[cfg(not(feature = "cuda"))]
+        Device::Cuda => return Err(no_cuda_support()),
+    };
     if mesh.faces.is_empty() {
         return Err(Error::NoSurface);
     }
@@ -163,8 +193,14 @@ pub fn write_mesh(trainer: &Trainer, out: &Path, mesh_resolution: usize) -> Resu
 }
 
 /// Mesh, normal maps (every view), re-rendered Stokes (training views) and `comparison.png`.
-pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, mesh_resolution: usize) -> Result<()> {
-    write_mesh(trainer, out, mesh_resolution)?;
+pub fn write_results(
+    trainer: &Trainer,
+    scene: &Scene,
+    out: &Path,
+    mesh_resolution: usize,
+    mesh_device: Device,
+) -> Result<()> {
+    write_mesh(trainer, out, mesh_resolution, mesh_device)?;
     let (normals_dir, stokes_dir) = (out.join("normals"), out.join("stokes"));
     for d in [&normals_dir, &stokes_dir] {
         std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;

@@ -5,7 +5,7 @@
 use rmvp_align::normal_errors;
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::data::TrainingSet;
-use rmvp_recon::extract::extract_mesh;
+use rmvp_recon::extract::{extract_mesh, CpuSdf};
 use rmvp_recon::model::Preset;
 use rmvp_recon::train::{TrainConfig, Trainer};
 
@@ -21,7 +21,9 @@ fn train(photometric: bool, geometric: bool) -> f64 {
         trainer.step();
     }
     let lw = trainer.level_weight();
-    let mesh = extract_mesh(&trainer.model, &trainer.params, &lw, 128, &trainer.set.frame, trainer.fd_step(&lw));
+    let mesh =
+        extract_mesh(&CpuSdf::new(&trainer.model, &trainer.params, &lw), 128, &trainer.set.frame, trainer.fd_step(&lw))
+            .unwrap();
     let report = normal_errors(&mesh, &scene).unwrap();
     println!("photometric {photometric} geometric {geometric}: normal MAE {:.2} deg", report.mean_mae_deg);
     report.mean_mae_deg

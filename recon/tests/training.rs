@@ -4,7 +4,7 @@
 use nalgebra::Vector3;
 use rmvp_dataset::{Scene, Split};
 use rmvp_recon::data::TrainingSet;
-use rmvp_recon::extract::extract_mesh;
+use rmvp_recon::extract::{extract_mesh, CpuSdf};
 use rmvp_recon::model::Preset;
 use rmvp_recon::output::render_view as render_outputs;
 use rmvp_recon::reconstruct::{reconstruct, Options};
@@ -58,7 +58,9 @@ fn analytic_sphere_converges_to_the_sphere() {
         assert!(r.event.is_none(), "{r:?}");
     }
     let lw = trainer.level_weight();
-    let mesh = extract_mesh(&trainer.model, &trainer.params, &lw, 64, &trainer.set.frame, trainer.fd_step(&lw));
+    let mesh =
+        extract_mesh(&CpuSdf::new(&trainer.model, &trainer.params, &lw), 64, &trainer.set.frame, trainer.fd_step(&lw))
+            .unwrap();
     let radii: Vec<f32> = mesh.positions.iter().map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()).collect();
     let mean_error = radii.iter().map(|r| (r - RADIUS).abs()).sum::<f32>() / radii.len() as f32;
     let worst = radii.iter().map(|r| (r - RADIUS).abs()).fold(0.0, f32::max);
@@ -73,7 +75,9 @@ fn analytic_sphere_converges_to_the_sphere() {
     // the full NeuS sampling renders them.
     let view = &scene.views[1];
     let out = render_outputs(&trainer, &view.camera, None, true);
-    let fine = extract_mesh(&trainer.model, &trainer.params, &lw, 160, &trainer.set.frame, trainer.fd_step(&lw));
+    let fine =
+        extract_mesh(&CpuSdf::new(&trainer.model, &trainer.params, &lw), 160, &trainer.set.frame, trainer.fd_step(&lw))
+            .unwrap();
     let learned = Object::new(&fine, Interface::Dielectric(1.5), Lobes::Plastic).unwrap();
     let truth = geometry_maps(&learned, &view.camera);
     let (mut inter, mut union, mut angles) = (0, 0, Vec::new());

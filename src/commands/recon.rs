@@ -3,6 +3,7 @@
 use super::progress;
 use anyhow::{Context, Result};
 use rmvp_dataset::layout::read_scene;
+use rmvp_recon::extract::Device;
 use rmvp_recon::model::Preset;
 use rmvp_recon::reconstruct::{reconstruct, Options};
 use std::ops::ControlFlow;
@@ -35,6 +36,10 @@ pub struct Args {
     /// Marching grid cells per axis for the mesh.
     #[arg(long, default_value_t = Options::default().mesh_resolution)]
     mesh_res: usize,
+    /// Where the mesh's SDF is evaluated: `cuda` runs it on the first NVIDIA GPU (needs its
+    /// driver and NVRTC; training stays on the CPU).
+    #[arg(long, value_enum, default_value_t = Options::default().mesh_device)]
+    mesh_device: Device,
     /// Rays per iteration (default: the preset's; fast 256, paper 512).
     #[arg(long)]
     batch: Option<usize>,
@@ -62,6 +67,7 @@ pub fn run(args: Args) -> Result<()> {
         geometric: !args.no_geometric,
         resume: args.resume,
         mesh_resolution: args.mesh_res,
+        mesh_device: args.mesh_device,
         checkpoint_every: args.checkpoint_every.max(1),
         batch_rays: args.batch,
         seed: args.seed,

@@ -141,6 +141,22 @@ impl Mlp {
         self.layers.last().expect("at least one layer").outputs
     }
 
+    /// Each layer's `(inputs, outputs, weight offset, bias offset)`; weights are `outputs x
+    /// inputs`, row-major (for other engines reading the same parameters).
+    pub fn layer_shapes(&self) -> Vec<(usize, usize, usize, usize)> {
+        self.layers.iter().map(|l| (l.inputs, l.outputs, l.weight, l.bias)).collect()
+    }
+
+    /// The hidden layers' activation.
+    pub fn activation(&self) -> Activation {
+        self.activation
+    }
+
+    /// The layer receiving the skip connection, if any.
+    pub fn skip(&self) -> Option<usize> {
+        self.skip
+    }
+
     /// Write initial weights into `params`.
     pub fn init(&self, params: &mut [f32], init: Init, rng: &mut Rng) {
         let depth = self.layers.len();

@@ -43,6 +43,16 @@ impl HashGrid {
         self.levels
     }
 
+    /// Entries per level's table (a power of two).
+    pub fn table_entries(&self) -> usize {
+        self.table
+    }
+
+    /// Where the first level's table starts in the parameter vector (levels follow each other).
+    pub fn offset(&self) -> usize {
+        self.offset
+    }
+
     /// Cells per axis of each level.
     pub fn resolutions(&self) -> &[u32] {
         &self.resolutions
