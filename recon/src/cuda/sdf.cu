@@ -38,6 +38,19 @@ __device__ void load_network(const float* params, float* net) {
     __syncthreads();
 }
 
+// out = softplus(W in + b) for a hidden layer of IN inputs whose weights (HIDDEN x IN, row-major)
+// and biases start at w.
+template <int IN>
+__device__ __forceinline__ void hidden_layer(const float* w, const float* in, float* out) {
+#pragma unroll 4
+    for (int j = 0; j < HIDDEN; ++j) {
+        float acc = w[IN * HIDDEN + j];
+#pragma unroll
+        for (int i = 0; i < IN; ++i) acc += w[j * IN + i] * in[i];
+        out[j] = softplus(acc);
+    }
+}
+
 __device__ float field_sdf(const float* params, const float* net, float px, float py, float pz) {
     float x[INPUTS];
     x[0] = px;
@@ -77,23 +90,11 @@ __device__ float field_sdf(const float* params, const float* net, float px, floa
         x[4 + FEATURES * level] = f1 * lw;
     }
     float h[HIDDEN], g[HIDDEN];
-    const float* w = net;
-#pragma unroll 4
-    for (int j = 0; j < HIDDEN; ++j) {
-        float acc = w[INPUTS * HIDDEN + j];
+    hidden_layer<INPUTS>(net, x, h);
+    const float* w = net + INPUTS * HIDDEN + HIDDEN;
 #pragma unroll
-        for (int i = 0; i < INPUTS; ++i) acc += w[j * INPUTS + i] * x[i];
-        h[j] = softplus(acc);
-    }
-    w += INPUTS * HIDDEN + HIDDEN;
     for (int l = 1; l < HIDDEN_LAYERS; ++l) {
-#pragma unroll 4
-        for (int j = 0; j < HIDDEN; ++j) {
-            float acc = w[HIDDEN * HIDDEN + j];
-#pragma unroll
-            for (int i = 0; i < HIDDEN; ++i) acc += w[j * HIDDEN + i] * h[i];
-            g[j] = softplus(acc);
-        }
+        hidden_layer<HIDDEN>(w, h, g);
 #pragma unroll
         for (int j = 0; j < HIDDEN; ++j) h[j] = g[j];
         w += HIDDEN * HIDDEN + HIDDEN;
