@@ -43,8 +43,7 @@ impl CudaSdf {
         let load = |name| module.load_function(name).map_err(|e| cuda_error(name, e));
         let (points_kernel, grid_kernel) = (load("sdf_points")?, load("sdf_grid")?);
         let stream = ctx.default_stream();
-        let upload = |what, data: &[f32]| stream.clone_htod(data).map_err(|e| cuda_error(what, e));
-        let params = upload("uploading the parameters", params)?;
+        let params = stream.clone_htod(params).map_err(|e| cuda_error("uploading the parameters", e))?;
         let shared_bytes = (4 * network_floats(field)) as u32;
         Ok(Self { stream, params, points_kernel, grid_kernel, shared_bytes, device })
     }

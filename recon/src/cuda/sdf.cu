@@ -14,15 +14,13 @@
 __constant__ unsigned int resolution[LEVELS] = RESOLUTIONS;
 __constant__ float level_weight[LEVELS] = LEVEL_WEIGHTS;
 
-// Weights of the SDF row only for the output layer: the features are not needed here.
-#define SHARED_FLOATS (INPUTS * HIDDEN + HIDDEN + (HIDDEN_LAYERS - 1) * (HIDDEN * HIDDEN + HIDDEN) + HIDDEN + 1)
-
 __device__ __forceinline__ float softplus(float x) {
     return fmaxf(x, 0.0f) + log1pf(expf(-fabsf(BETA * x))) / BETA;
 }
 
-// Copy the network's weights (SDF row of the last layer) into shared memory, laid out layer
-// after layer as [weights, biases].
+// Copy the network's weights into shared memory, laid out layer after layer as [weights,
+// biases]; of the last layer only the SDF row (the features are not needed here). The host
+// sizes it (`network_floats` in mod.rs).
 __device__ void load_network(const float* params, float* net) {
     const int weight_offsets[HIDDEN_LAYERS + 1] = WEIGHT_OFFSETS;
     const int bias_offsets[HIDDEN_LAYERS + 1] = BIAS_OFFSETS;
