@@ -4,15 +4,19 @@
 //! Chamfer, F-score, normal MAE on the training and on the held-out views.
 //!
 //! `cargo bench --bench quality [-- --scenes bumps,knot --variants full,no-geometric
-//! --res 256x256 --iters N --seed S]` (part of `./run bench` with its defaults). Scenes are
+//! --res 256x256 --iters N --seed S --preset fast|dense|paper --mesh-res N --curve 250,500]`
+//! (part of `./run bench` with its defaults). `--curve` also measures the model at those
+//! iterations of the run (its mesh; training minutes so far): quality against time. Scenes are
 //! simulated once into `target/tmp/bench-quality/<WxH>/<scene>` and reused; each row is kept
 //! in `results.jsonl` there. The bunny comes from `$RMVP_MESHES` or `../shared/meshes`.
 
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
-use rmvp_dataset::{Mesh, Split};
+use rmvp_dataset::{Mesh, Scene, Split};
 use rmvp_pipeline::evaluation_set::{scene, CaptureOptions, SCENES};
-use rmvp_recon::reconstruct::{reconstruct, Options, MESH};
+use rmvp_recon::extract::Device;
+use rmvp_recon::model::Preset;
+use rmvp_recon::reconstruct::{reconstruct, write_mesh, Options, MESH};
 use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -22,6 +26,7 @@ use std::time::Instant;
 struct Row {
     scene: String,
     variant: String,
+    preset: Preset,
     size: String,
     iterations: u32,
     train_minutes: f64,
@@ -32,6 +37,63 @@ struct Row {
     normal_mae_held_out_deg: f64,
 }
 
+/// One reconstruction's identity, as its rows show it.
+struct Run<'a> {
+    scene: &'a str,
+    variant: &'a str,
+    preset: Preset,
+    size: (u32, u32),
+    seed: u64,
+}
+
+/// Evaluate `dir`'s mesh (the model after `iterations`, trained and written in `seconds`)
+/// against the scene's truth; print the row and keep it in `log`.
+fn measure(
+    log: &mut std::fs::File,
+    run: &Run,
+    data: &Scene,
+    gt: &Mesh,
+    dir: &Path,
+    iterations: u32,
+    seconds: (f64, f64),
+) -> Row {
+    let pred = Mesh::read(&dir.join(MESH)).expect("reconstructed mesh");
+    let evaluation = evaluate(&pred, gt, Some(data), &SurfaceOptions::default()).expect("evaluation");
+    let row = Row {
+        scene: run.scene.to_string(),
+        variant: run.variant.to_string(),
+        preset: run.preset,
+        size: format!("{}x{}", run.size.0, run.size.1),
+        iterations,
+        train_minutes: seconds.0 / 60.0,
+        output_minutes: seconds.1 / 60.0,
+        chamfer: evaluation.surface.chamfer,
+        f_score: evaluation.surface.fscore,
+        normal_mae_train_deg: evaluation.split_normal_mae_deg(Split::Train).unwrap_or(f64::NAN),
+        normal_mae_held_out_deg: evaluation.split_normal_mae_deg(Split::Eval).unwrap_or(f64::NAN),
+    };
+    println!(
+        "| {} | {} | {} | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} |",
+        row.scene,
+        row.variant,
+        row.iterations,
+        row.train_minutes,
+        row.output_minutes,
+        row.chamfer,
+        row.f_score,
+        row.normal_mae_train_deg,
+        row.normal_mae_held_out_deg
+    );
+    let line = serde_json::json!({
+        "scene": row.scene, "variant": row.variant, "preset": row.preset, "size": row.size,
+        "iterations": row.iterations, "seed": run.seed, "train_minutes": row.train_minutes,
+        "output_minutes": row.output_minutes, "chamfer": row.chamfer, "f_score": row.f_score,
+        "normal_mae_train_deg": row.normal_mae_train_deg, "normal_mae_held_out_deg": row.normal_mae_held_out_deg,
+    });
+    writeln!(log, "{line}").expect("results log");
+    row
+}
+
 /// What the command line asked for.
 struct Plan {
     scenes: Vec<String>,
@@ -39,6 +101,10 @@ struct Plan {
     size: (u32, u32),
     iterations: Option<u32>,
     seed: u64,
+    preset: Preset,
+    mesh_resolution: usize,
+    /// Iterations at which the model is measured too.
+    curve: Vec<u32>,
 }
 
 fn plan() -> Plan {
@@ -48,6 +114,9 @@ fn plan() -> Plan {
         size: (256, 256),
         iterations: None,
         seed: 0,
+        preset: Preset::Fast,
+        mesh_resolution: Options::default().mesh_resolution,
+        curve: Vec::new(),
     };
     let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
     for pair in args.chunks(2) {
@@ -62,6 +131,11 @@ fn plan() -> Plan {
             }
             "--iters" => plan.iterations = Some(value.parse().expect("--iters N")),
             "--seed" => plan.seed = value.parse().expect("--seed N"),
+            "--preset" => {
+                plan.preset = serde_json::from_value(value.as_str().into()).expect("--preset fast|dense|paper")
+            }
+            "--mesh-res" => plan.mesh_resolution = value.parse().expect("--mesh-res N"),
+            "--curve" => plan.curve = list().iter().map(|v| v.parse().expect("--curve N,N")).collect(),
             other => panic!("unknown argument {other}"),
         }
     }
@@ -69,7 +143,13 @@ fn plan() -> Plan {
 }
 
 fn options(variant: &str, plan: &Plan) -> Options {
-    let base = Options { iterations: plan.iterations, seed: plan.seed, ..Options::default() };
+    let base = Options {
+        preset: plan.preset,
+        iterations: plan.iterations,
+        seed: plan.seed,
+        mesh_resolution: plan.mesh_resolution,
+        ..Options::default()
+    };
     match variant {
         "full" => base,
         "no-geometric" => Options { geometric: false, ..base },
@@ -92,8 +172,8 @@ fn main() {
     let (w, h) = plan.size;
     let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("bench-quality/{w}x{h}"));
     let capture = CaptureOptions { size: plan.size, meshes: meshes(), ..CaptureOptions::default() };
-    println!("| scene | variant | minutes (train + outputs) | Chamfer | F-score | normal MAE train | held out |");
-    println!("| --- | --- | --- | --- | --- | --- | --- |");
+    println!("| scene | variant | iterations | minutes (train + outputs) | Chamfer | F-score | normal MAE train | held out |");
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- |");
     std::fs::create_dir_all(&root).expect("bench folder");
     let log = root.join("results.jsonl");
     let mut results = std::fs::OpenOptions::new().create(true).append(true).open(&log).expect("results log");
@@ -110,56 +190,44 @@ fn main() {
         let gt = data.mesh.clone().expect("ground-truth mesh");
         for variant in &plan.variants {
             let options = options(variant, &plan);
-            let out = dir.join(format!("{variant}-seed{}", plan.seed));
+            let label = match plan.preset {
+                Preset::Fast => variant.clone(),
+                other => format!("{}-{variant}", serde_json::to_value(other).expect("a name")).replace('"', ""),
+            };
+            let out = dir.join(format!("{label}-seed{}", plan.seed));
             let _ = std::fs::remove_dir_all(&out);
+            let run = Run { scene: name, variant: &label, preset: plan.preset, size: (w, h), seed: plan.seed };
             let start = Instant::now();
-            let mut trained = 0.0;
-            let trainer = reconstruct(&data, &out, &options, |_, _| {
-                trained = start.elapsed().as_secs_f64();
+            // Training time so far: the wall time less the time spent measuring the curve.
+            let (mut trained, mut measuring) = (0.0, 0.0);
+            let trainer = reconstruct(&data, &out, &options, |_, trainer| {
+                trained = start.elapsed().as_secs_f64() - measuring;
+                if plan.curve.contains(&trainer.iteration) && trainer.iteration < trainer.config.iterations {
+                    let at = out.join(format!("at-{}", trainer.iteration));
+                    write_mesh(trainer, &at, plan.mesh_resolution, Device::Cpu).expect("mesh during training");
+                    let seconds = start.elapsed().as_secs_f64() - measuring - trained;
+                    measure(&mut results, &run, &data, &gt, &at, trainer.iteration, (trained, seconds));
+                    measuring = start.elapsed().as_secs_f64() - trained;
+                }
                 ControlFlow::Continue(())
             })
             .unwrap_or_else(|e| panic!("{name} {variant}: {e}"));
-            let total = start.elapsed().as_secs_f64();
-            let pred = Mesh::read(&out.join(MESH)).expect("reconstructed mesh");
-            let evaluation = evaluate(&pred, &gt, Some(&data), &SurfaceOptions::default()).expect("evaluation");
-            let row = Row {
-                scene: name.clone(),
-                variant: variant.clone(),
-                size: format!("{w}x{h}"),
-                iterations: trainer.config.iterations,
-                train_minutes: trained / 60.0,
-                output_minutes: (total - trained) / 60.0,
-                chamfer: evaluation.surface.chamfer,
-                f_score: evaluation.surface.fscore,
-                normal_mae_train_deg: evaluation.split_normal_mae_deg(Split::Train).unwrap_or(f64::NAN),
-                normal_mae_held_out_deg: evaluation.split_normal_mae_deg(Split::Eval).unwrap_or(f64::NAN),
-            };
-            println!(
-                "| {} | {} | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} |",
-                row.scene,
-                row.variant,
-                row.train_minutes,
-                row.output_minutes,
-                row.chamfer,
-                row.f_score,
-                row.normal_mae_train_deg,
-                row.normal_mae_held_out_deg
-            );
-            let line = serde_json::json!({
-                "scene": row.scene, "variant": row.variant, "size": row.size, "iterations": row.iterations,
-                "seed": plan.seed, "train_minutes": row.train_minutes, "output_minutes": row.output_minutes,
-                "chamfer": row.chamfer, "f_score": row.f_score, "normal_mae_train_deg": row.normal_mae_train_deg,
-                "normal_mae_held_out_deg": row.normal_mae_held_out_deg,
-            });
-            writeln!(results, "{line}").expect("results log");
-            rows.push(row);
+            let outputs = start.elapsed().as_secs_f64() - measuring - trained;
+            let iterations = trainer.config.iterations;
+            rows.push(measure(&mut results, &run, &data, &gt, &out, iterations, (trained, outputs)));
         }
     }
-    for variant in &plan.variants {
-        let of: Vec<&Row> = rows.iter().filter(|r| &r.variant == variant).collect();
+    let mut variants: Vec<&str> = Vec::new();
+    for row in &rows {
+        if !variants.contains(&row.variant.as_str()) {
+            variants.push(&row.variant);
+        }
+    }
+    for variant in variants {
+        let of: Vec<&Row> = rows.iter().filter(|r| r.variant == variant).collect();
         let mean = |f: fn(&Row) -> f64| of.iter().map(|r| f(r)).sum::<f64>() / of.len() as f64;
         println!(
-            "| mean | {variant} | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} |",
+            "| mean | {variant} | | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} |",
             mean(|r| r.train_minutes),
             mean(|r| r.output_minutes),
             mean(|r| r.chamfer),
