@@ -2,6 +2,9 @@
 //! surface: a coarse multistart over principal axes and rotations, then point-to-plane ICP
 //! solving all 7 degrees of freedom by Gauss-Newton with robust (Geman-McClure) weights, a
 //! shrinking correspondence distance and Levenberg damping for flat or symmetric shapes.
+//! Optionally an eighth unknown: a uniform offset of the target's surface along its normals, as
+//! a reconstruction grown by its masks' dilation carries (fitted only with the scale fixed: on a
+//! rounded shape the two are nearly the same motion).
 //!
 //! Work happens in a normalised frame (target centroid at the origin, RMS radius 1) so that the
 //! thresholds and the damping mean the same for millimetres and metres.
@@ -142,6 +145,10 @@ pub struct IcpOptions {
     /// Keep the starting guess's scale (a rigid fit: the scan's scale in the target's frame is
     /// known, as from a scan in millimetres onto a metric reconstruction).
     pub fixed_scale: bool,
+    /// Also fit how far the target's surface lies outside the scan's along its normals (the
+    /// same everywhere), so that a uniformly grown or shrunk target does not pull the fit
+    /// towards its better covered side. Only with `fixed_scale`.
+    pub fit_offset: bool,
     /// Scan points used by the fine stage at most (random subsample).
     pub max_scan_points: usize,
     /// Points sampled on the target surface (at least its vertex count).
@@ -158,6 +165,7 @@ impl Default for IcpOptions {
             coarse: true,
             initial: Similarity::identity(),
             fixed_scale: false,
+            fit_offset: false,
             max_scan_points: 50_000,
             target_samples: 200_000,
             iterations: 60,
@@ -178,6 +186,10 @@ pub struct Alignment {
     pub median_distance: f64,
     /// Share of scan points within the final correspondence distance.
     pub inlier_ratio: f64,
+    /// How far the target's surface lies outside the aligned scan's along its normals, in
+    /// target units (fitted with [`IcpOptions::fit_offset`], otherwise 0); `rms` is measured
+    /// from the target moved back by it.
+    pub target_offset: f64,
 }
 
 /// The stored form of an [`Alignment`]: `x_target = s R x_scan + t`, and the inverse.
@@ -188,6 +200,8 @@ struct AlignmentRecord {
     rms_point_to_plane: f64,
     median_distance: f64,
     inlier_ratio: f64,
+    #[serde(default)]
+    target_offset: f64,
 }
 
 impl From<Alignment> for AlignmentRecord {
@@ -198,6 +212,7 @@ impl From<Alignment> for AlignmentRecord {
             rms_point_to_plane: a.rms,
             median_distance: a.median_distance,
             inlier_ratio: a.inlier_ratio,
+            target_offset: a.target_offset,
         }
     }
 }
@@ -215,6 +230,7 @@ impl TryFrom<AlignmentRecord> for Alignment {
             rms: rec.rms_point_to_plane,
             median_distance: rec.median_distance,
             inlier_ratio: rec.inlier_ratio,
+            target_offset: rec.target_offset,
         })
     }
 }
@@ -324,17 +340,29 @@ fn principal_axes(points: &[Vector3<f64>], c: &Vector3<f64>) -> Matrix3<f64> {
     axes
 }
 
-/// Point-to-plane Gauss-Newton refinement of `start` (normalised frame) on `scan` points, the
-/// scale held fixed when `fixed_scale`.
+/// The unknowns of a refinement besides rotation and translation.
+#[derive(Clone, Copy)]
+struct Free {
+    /// The scale.
+    scale: bool,
+    /// The target's offset along its normals.
+    offset: bool,
+}
+
+/// Rotation and translation only.
+const RIGID: Free = Free { scale: false, offset: false };
+
+/// Point-to-plane Gauss-Newton refinement of `start` (normalised frame: the similarity and the
+/// target's offset along its normals) on `scan` points, solving for the `free` unknowns.
 fn refine(
     target: &Target,
     scan: &[Vector3<f64>],
-    start: Similarity,
+    start: (Similarity, f64),
     iterations: usize,
     (radius_start, radius_end): (f64, f64),
-    fixed_scale: bool,
-) -> Similarity {
-    let mut current = start;
+    free: Free,
+) -> (Similarity, f64) {
+    let (mut current, mut offset) = start;
     for it in 0..iterations {
         // Correspondence distance shrinks geometrically from radius_start to radius_end.
         let f = it as f64 / (iterations.max(2) - 1) as f64;
@@ -353,16 +381,20 @@ fn refine(
             break;
         }
         // Robust scale from the median absolute residual.
-        let mut abs: Vec<f64> = pairs.iter().map(|(x, q, n)| n.dot(&(x - q)).abs()).collect();
+        let residual = |(x, q, n): &(Vector3<f64>, Vector3<f64>, Vector3<f64>)| n.dot(&(x - q)) + offset;
+        let mut abs: Vec<f64> = pairs.iter().map(|pair| residual(pair).abs()).collect();
         let mid = abs.len() / 2;
         let mad = *abs.select_nth_unstable_by(mid, f64::total_cmp).1;
         let c2 = (3.0 * 1.4826 * mad).max(1e-9).powi(2);
-        let (mut h, mut g) = (SMatrix::<f64, 7, 7>::zeros(), SVector::<f64, 7>::zeros());
-        for (x, q, n) in &pairs {
-            let r = n.dot(&(x - q));
-            let w = c2 * c2 / (c2 + r * r).powi(2); // Geman-McClure
-                                                    // d r / d(sigma, omega, tau) for x -> (1 + sigma) x + omega x x + tau.
-            let j = SVector::<f64, 7>::from_column_slice(&[
+        let (mut h, mut g) = (SMatrix::<f64, 8, 8>::zeros(), SVector::<f64, 8>::zeros());
+        for pair in &pairs {
+            let (x, _, n) = pair;
+            let r = residual(pair);
+            // Geman-McClure weight.
+            let w = c2 * c2 / (c2 + r * r).powi(2);
+            // d r / d(sigma, omega, tau, delta) for x -> (1 + sigma) x + omega x x + tau, the
+            // target's surface moved out by delta along its normals.
+            let j = SVector::<f64, 8>::from_column_slice(&[
                 n.dot(x),
                 x.y * n.z - x.z * n.y,
                 x.z * n.x - x.x * n.z,
@@ -370,30 +402,34 @@ fn refine(
                 n.x,
                 n.y,
                 n.z,
+                1.0,
             ]);
             h += w * j * j.transpose();
             g += w * r * j;
         }
-        if fixed_scale {
-            // Pin sigma to zero.
-            h.row_mut(0).fill(0.0);
-            h.column_mut(0).fill(0.0);
-            h[(0, 0)] = 1.0;
-            g[0] = 0.0;
+        // Pin the unknowns that are not free (sigma: 0, delta: 7) to their current values.
+        for (k, pinned) in [(0, !free.scale), (7, !free.offset)] {
+            if pinned {
+                h.row_mut(k).fill(0.0);
+                h.column_mut(k).fill(0.0);
+                h[(k, k)] = 1.0;
+                g[k] = 0.0;
+            }
         }
-        let damping = 1e-6 * h.trace() / 7.0 + 1e-12;
-        let Some(step) = (h + SMatrix::<f64, 7, 7>::identity() * damping).cholesky().map(|c| c.solve(&-g)) else {
+        let damping = 1e-6 * h.trace() / 8.0 + 1e-12;
+        let Some(step) = (h + SMatrix::<f64, 8, 8>::identity() * damping).cholesky().map(|c| c.solve(&-g)) else {
             break;
         };
         let rotation = Rotation3::new(Vector3::new(step[1], step[2], step[3]));
         let delta = Similarity { r: *rotation.matrix(), t: Vector3::new(step[4], step[5], step[6]), s: step[0].exp() };
         current = delta.compose(&current);
+        offset += step[7];
         // Converged: well below the noise of any scan (normalised units, radius 1).
         if step.norm() < 1e-7 {
             break;
         }
     }
-    current
+    (current, offset)
 }
 
 /// Symmetric truncated distance between a transformed scan sample and a target sample
@@ -465,7 +501,7 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
             let mut scored: Vec<(Similarity, f64)> = starts
                 .par_iter()
                 .map(|c| {
-                    let refined = refine(&tgt, &coarse_points, *c, iterations, radii, true);
+                    let (refined, _) = refine(&tgt, &coarse_points, (*c, 0.0), iterations, radii, RIGID);
                     (refined, symmetric_score(&tgt, &target_sample, &coarse_points, &refined))
                 })
                 .collect();
@@ -481,8 +517,9 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
     // Coarse to fine: most iterations on a tenth of the points, the last third on all of them.
     let early = options.iterations * 2 / 3;
     let few = &fine_points[..fine_points.len().min(10_000)];
-    let fine = refine(&tgt, few, start, early, (0.2, 0.04), options.fixed_scale);
-    let fine = refine(&tgt, &fine_points, fine, options.iterations - early, (0.04, 0.02), options.fixed_scale);
+    let free = Free { scale: !options.fixed_scale, offset: options.fixed_scale && options.fit_offset };
+    let fine = refine(&tgt, few, (start, 0.0), early, (0.2, 0.04), free);
+    let (fine, offset) = refine(&tgt, &fine_points, fine, options.iterations - early, (0.04, 0.02), free);
     // Back to target units: scan -> normalised -> target.
     let transform = normalize.inverse().compose(&fine);
     // Statistics over all scan points, in target units; distances beyond half the target's
@@ -497,7 +534,7 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
                 Some((k, d2)) => {
                     let n = Vector3::from(tgt.normals[k].map(|v| v as f64));
                     let q = Vector3::from(tgt.points[k].map(|v| v as f64));
-                    (d2.sqrt() * tr, n.dot(&(x - q)) * tr)
+                    (d2.sqrt() * tr, (n.dot(&(x - q)) + offset) * tr)
                 }
                 None => (0.5 * tr, f64::INFINITY),
             }
@@ -512,6 +549,7 @@ pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignme
         rms: (inliers.iter().map(|r| r * r).sum::<f64>() / inliers.len().max(1) as f64).sqrt(),
         median_distance,
         inlier_ratio: inliers.len() as f64 / residuals.len() as f64,
+        target_offset: offset * tr,
     })
 }
 

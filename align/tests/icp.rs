@@ -183,3 +183,44 @@ fn alignment_files_read_back_what_they_wrote() {
     let tiny = Mesh { positions: vec![[0.0; 3]; 5], ..Mesh::default() };
     assert!(matches!(align(&tiny, &target, &options), Err(Error::TooFewScanPoints { points: 5 })));
 }
+
+#[test]
+fn a_grown_target_seen_from_above_only_pulls_a_rigid_fit_unless_its_offset_is_fitted() {
+    // The target as a reconstruction from views above a table gives it: grown by 0.5 mm along
+    // its normals (dilated masks) and without its lowest fifth (never seen). The scan is the
+    // true object, whole, at the known scale. A plain rigid fit is pulled up by the grown top
+    // (nothing below pulls back); fitting the offset as an unknown removes that pull.
+    let spot = target();
+    let mut normals = vec![Vector3::<f64>::zeros(); spot.positions.len()];
+    for f in &spot.faces {
+        let [a, b, c] = f.map(|i| Vector3::from(spot.positions[i as usize].map(|v| v as f64)));
+        for i in f {
+            normals[*i as usize] += (b - a).cross(&(c - a));
+        }
+    }
+    let grown: Vec<[f32; 3]> = spot
+        .positions
+        .iter()
+        .zip(&normals)
+        .map(|(p, n)| (Vector3::from(p.map(|v| v as f64)) + 0.5 * n.normalize()).map(|v| v as f32).into())
+        .collect();
+    let (lo, hi) = spot.bounds().unwrap();
+    let cut = lo[1] + 0.2 * (hi[1] - lo[1]);
+    let faces = spot.faces.iter().filter(|f| f.iter().all(|&i| spot.positions[i as usize][1] > cut)).copied().collect();
+    let reference = Mesh { positions: grown, faces, normals: None, ..spot.clone() };
+    let want = truth(25.0, Vector3::new(0.2, 1.0, -0.4), 1.0, Vector3::new(-30.0, 12.0, 40.0));
+    let cloud = scan(&spot, &want, 40_000, 13);
+    let initial = truth(0.5, Vector3::new(1.0, 0.0, 1.0), 1.0, Vector3::new(1.0, -1.0, 0.5)).compose(&want);
+    let rigid = |fit_offset| {
+        let options = IcpOptions { coarse: false, initial, fixed_scale: true, fit_offset, ..options() };
+        align(&cloud, &reference, &options).unwrap()
+    };
+    let centre = Vector3::new(0.0, 0.5 * (lo[1] + hi[1]) as f64, 0.0);
+    let centre_error = |a: &Alignment| (a.transform.apply(&want.inverse().apply(&centre)) - centre).norm();
+    let (plain, fitted) = (rigid(false), rigid(true));
+    assert!(centre_error(&plain) > 0.15 && plain.target_offset == 0.0, "{} {plain:?}", centre_error(&plain));
+    assert!(centre_error(&fitted) < 0.02, "centre off by {} mm: {fitted:?}", centre_error(&fitted));
+    assert!((fitted.target_offset - 0.5).abs() < 0.05, "offset {}", fitted.target_offset);
+    assert_close(&fitted.transform, &want, 0.02, 1e-12, 0.2);
+    assert!(fitted.rms < 0.05, "rms from the offset surface {}", fitted.rms);
+}

@@ -652,11 +652,14 @@ pub fn align_scan(scan: &ScanInput, reference: &Mesh, world_mm: bool, dir: &Path
     if let Some(expected) = expected_scale {
         // Units known in a metric world: the scale is known too, and the reference's own error
         // of size (tenths of a percent) must not pass into the ground truth. Refit rigidly at
-        // that scale, from the free fit's pose about the scan's centroid.
+        // that scale, from the free fit's pose about the scan's centroid, with the reference's
+        // growth along its normals as an unknown: its masks' dilation grows it by a fraction of
+        // a pixel all round, and its unseen underside would leave the grown top pulling the
+        // scan up (docs/datasets.md).
         let n = mesh.positions.len().max(1) as f64;
         let centroid = mesh.positions.iter().map(|p| Vector3::from(p.map(|v| v as f64))).sum::<Vector3<f64>>() / n;
         let initial = alignment.transform.rescaled_about(expected, &centroid);
-        let rigid = IcpOptions { coarse: false, initial, fixed_scale: true, ..IcpOptions::default() };
+        let rigid = IcpOptions { coarse: false, initial, fixed_scale: true, fit_offset: true, ..IcpOptions::default() };
         alignment = align(&mesh, reference, &rigid)?;
     }
     let relative = alignment.median_distance / size;

@@ -321,7 +321,11 @@ fn datasheet(options: &PublishOptions, objects: &[(String, BuildRecord, Scene)])
         if let (Some(scan), Some(reference)) = (&record.scan, &record.reference) {
             let a = &scan.alignment;
             let fit = match scan.expected_scale {
-                Some(_) => format!("rigidly at its units' scale (a free scale would be {:.5})", scan.free_scale),
+                Some(_) => format!(
+                    "rigidly at its units' scale (a free scale would be {:.5}; the reference's surface lies {:+.4} \
+                     outside the scan's, fitted as one offset along its normals)",
+                    scan.free_scale, a.target_offset
+                ),
                 None => "with scale".to_string(),
             };
             let _ = writeln!(

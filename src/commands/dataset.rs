@@ -268,9 +268,11 @@ fn build(args: BuildArgs) -> Result<()> {
     );
     if let Some(scan) = &record.scan {
         println!(
-            "scan aligned: scale {:.5} (free fit {:.5}), median distance {:.4} ({:.3} % of the size), masks IoU mean {:.4}",
+            "scan aligned: scale {:.5} (free fit {:.5}), the reference {:+.4} outside it, median distance {:.4} ({:.3} % \
+             of the size), masks IoU mean {:.4}",
             scan.alignment.transform.s,
             scan.free_scale,
+            scan.alignment.target_offset,
             scan.alignment.median_distance,
             100.0 * scan.median_distance_relative,
             scan.mask_iou_mean
