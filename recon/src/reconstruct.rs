@@ -6,6 +6,7 @@ use crate::extract::{extract_mesh, CpuSdf, Device};
 use crate::model::Preset;
 use crate::output::render_view;
 use crate::train::{StepReport, TrainConfig, Trainer};
+use crate::volume::Sampling;
 use crate::{Error, Result};
 use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::{exr, png};
@@ -36,6 +37,8 @@ pub struct Options {
     pub checkpoint_every: u32,
     /// Rays per batch (default: the preset's).
     pub batch_rays: Option<usize>,
+    /// Samples per ray (default: the preset's).
+    pub sampling: Option<Sampling>,
     /// Random seed.
     pub seed: u64,
     /// Train at most this many iterations in this call, then checkpoint and return without
@@ -58,6 +61,7 @@ impl Default for Options {
             mesh_device: Device::Cpu,
             checkpoint_every: 500,
             batch_rays: None,
+            sampling: None,
             seed: 0,
             stop_after: None,
             view_outputs: true,
@@ -75,6 +79,9 @@ impl Options {
         config.seed = self.seed;
         if let Some(b) = self.batch_rays {
             config.batch_rays = b;
+        }
+        if let Some(s) = self.sampling {
+            config.sampling = s;
         }
         config
     }

@@ -70,6 +70,7 @@ pub fn run(args: Args) -> Result<()> {
         mesh_device: args.mesh_device,
         checkpoint_every: args.checkpoint_every.max(1),
         batch_rays: args.batch,
+        sampling: None,
         seed: args.seed,
         stop_after: args.stop_after,
         view_outputs: !args.mesh_only,

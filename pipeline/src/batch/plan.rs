@@ -79,6 +79,7 @@ impl Variant {
             mesh_device: defaults.mesh_device,
             checkpoint_every: self.checkpoint_every.unwrap_or(defaults.checkpoint_every).max(1),
             batch_rays: self.batch,
+            sampling: None,
             seed,
             stop_after: None,
             view_outputs: !self.mesh_only,
