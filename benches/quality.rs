@@ -9,8 +9,11 @@
 //! iterations of the run (its mesh; training minutes so far): quality against time. Scenes are
 //! simulated once into `target/tmp/bench-quality/<WxH>/<scene>` and reused; each row is kept
 //! in `results.jsonl` there. The bunny comes from `$RMVP_MESHES` or `../shared/meshes`.
-//! Variant `near-surface` (not run by default) is the default with 24 uniform and 40 up-sampled
-//! samples per ray instead of 32 and 32: the same samples, more of them near the surface.
+//! Variants not run by default, each the default with one change: `near-surface` 24 uniform
+//! and 40 up-sampled samples per ray instead of 32 and 32 (the same samples, more of them near
+//! the surface); `wide-margin` the masks dilated by a 32nd of the image width (8 pixels at
+//! 256, 38 at 1224) instead of 8 pixels; `level-rates` hash-grid level `l` learning at
+//! `0.9^l` of the coarsest level's rate.
 
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
@@ -156,9 +159,11 @@ fn options(variant: &str, plan: &Plan) -> Options {
     match variant {
         "full" => base,
         "near-surface" => Options { sampling: Some(Sampling { coarse: 24, fine: 40, steps: 4 }), ..base },
+        "wide-margin" => Options { margin: Some(plan.size.0 as usize / 32), ..base },
+        "level-rates" => Options { grid_level_decay: Some(0.9), ..base },
         "no-geometric" => Options { geometric: false, ..base },
         "no-photometric" => Options { photometric: false, ..base },
-        other => panic!("unknown variant {other} (full, no-geometric, no-photometric, near-surface)"),
+        other => panic!("unknown variant {other} (full, no-geometric, no-photometric, near-surface, wide-margin)"),
     }
 }
 

@@ -39,6 +39,10 @@ pub struct Options {
     pub batch_rays: Option<usize>,
     /// Samples per ray (default: the preset's).
     pub sampling: Option<Sampling>,
+    /// Dilation of the masks that object rays are drawn from, pixels (default: the preset's).
+    pub margin: Option<usize>,
+    /// Learning rate of hash-grid level `l` relative to level 0, `decay^l` (default: the preset's).
+    pub grid_level_decay: Option<f32>,
     /// Random seed.
     pub seed: u64,
     /// Train at most this many iterations in this call, then checkpoint and return without
@@ -62,6 +66,8 @@ impl Default for Options {
             checkpoint_every: 500,
             batch_rays: None,
             sampling: None,
+            margin: None,
+            grid_level_decay: None,
             seed: 0,
             stop_after: None,
             view_outputs: true,
@@ -82,6 +88,12 @@ impl Options {
         }
         if let Some(s) = self.sampling {
             config.sampling = s;
+        }
+        if let Some(m) = self.margin {
+            config.margin = m;
+        }
+        if let Some(d) = self.grid_level_decay {
+            config.adam.grid_level_decay = d;
         }
         config
     }

@@ -86,6 +86,7 @@ impl TrainConfig {
                     lr_variance: 5e-4,
                     warmup: 5000.min(iterations / 20),
                     final_fraction: 0.05,
+                    grid_level_decay: 1.0,
                 },
             ),
             Preset::Fast | Preset::Dense => (
@@ -97,6 +98,7 @@ impl TrainConfig {
                     lr_variance: 2e-3,
                     warmup: (iterations / 20).min(500),
                     final_fraction: 0.05,
+                    grid_level_decay: 1.0,
                 },
             ),
         };

@@ -71,6 +71,8 @@ pub fn run(args: Args) -> Result<()> {
         checkpoint_every: args.checkpoint_every.max(1),
         batch_rays: args.batch,
         sampling: None,
+        margin: None,
+        grid_level_decay: None,
         seed: args.seed,
         stop_after: args.stop_after,
         view_outputs: !args.mesh_only,

@@ -80,6 +80,8 @@ impl Variant {
             checkpoint_every: self.checkpoint_every.unwrap_or(defaults.checkpoint_every).max(1),
             batch_rays: self.batch,
             sampling: None,
+            margin: None,
+            grid_level_decay: None,
             seed,
             stop_after: None,
             view_outputs: !self.mesh_only,

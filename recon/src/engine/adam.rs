@@ -16,6 +16,13 @@ pub struct AdamConfig {
     pub warmup: u32,
     /// Final learning rate as a fraction of the peak (cosine decay).
     pub final_fraction: f32,
+    /// Learning rate of hash-grid level `l` relative to level 0: `grid_level_decay^l`.
+    #[serde(default = "one")]
+    pub grid_level_decay: f32,
+}
+
+fn one() -> f32 {
+    1.0
 }
 
 /// Adam state over the flat parameter vector.
@@ -62,10 +69,14 @@ impl Adam {
         let factor = Self::schedule(config, iteration, total);
         let c1 = 1.0 - BETA1.powi(self.steps as i32);
         let c2 = 1.0 - BETA2.powi(self.steps as i32);
+        let mut grid_level = 0;
         for (range, group) in layout.ranges() {
             let (lr, eps) = match group {
                 Group::Network => (config.lr_network, 1e-8),
-                Group::Grid => (config.lr_grid, 1e-15),
+                Group::Grid => {
+                    grid_level += 1;
+                    (config.lr_grid * config.grid_level_decay.powi(grid_level - 1), 1e-15)
+                }
                 Group::Variance => (config.lr_variance, 1e-8),
             };
             let lr = lr * factor;
@@ -77,6 +88,38 @@ impl Adam {
                 *v = BETA2 * *v + (1.0 - BETA2) * g * g;
                 *p -= lr * (*m / c1) / ((*v / c2).sqrt() + eps);
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::engine::params::{Group, ParamLayout};
+
+    /// Adam's first step moves every parameter by its group's rate (times the schedule), whatever
+    /// the gradient's size: so each hash-grid level moves by `lr_grid * decay^level`.
+    #[test]
+    fn grid_levels_step_by_their_own_rates() {
+        let mut layout = ParamLayout::default();
+        layout.reserve(2, Group::Network);
+        for _ in 0..3 {
+            layout.reserve(2, Group::Grid);
+        }
+        let config = AdamConfig {
+            lr_network: 1e-3,
+            lr_grid: 1e-2,
+            lr_variance: 1e-3,
+            warmup: 0,
+            final_fraction: 1.0,
+            grid_level_decay: 0.5,
+        };
+        let mut params = vec![0f32; layout.len()];
+        let grad = [1.0, 2.0, 0.1, 3.0, 1.0, 1.0, 5.0, 0.2];
+        Adam::new(layout.len()).step(&layout, &config, &mut params, &grad, 0, 10);
+        let want = [1e-3, 1e-3, 1e-2, 1e-2, 5e-3, 5e-3, 2.5e-3, 2.5e-3];
+        for (p, w) in params.iter().zip(want) {
+            assert!((p + w).abs() < 1e-6 * w.max(1e-3) * 10.0, "{params:?}");
         }
     }
 }

@@ -29,7 +29,11 @@ impl HashGrid {
         let growth = if levels > 1 { (finest as f64 / base as f64).powf(1.0 / (levels - 1) as f64) } else { 1.0 };
         let resolutions = (0..levels).map(|l| (base as f64 * growth.powi(l as i32)).round() as u32).collect();
         let table = 1usize << log2_table;
-        let offset = layout.reserve(levels * table * FEATURES, Group::Grid);
+        // One range per level, contiguous: Adam can give each level its own rate.
+        let offset = layout.reserve(table * FEATURES, Group::Grid);
+        for _ in 1..levels {
+            layout.reserve(table * FEATURES, Group::Grid);
+        }
         Self { levels, table, resolutions, offset }
     }
 
