@@ -188,7 +188,7 @@ fn small_model() -> (Model, Vec<f32>) {
     let mut params = model.init(11);
     // Lively grid features, so that their gradients are measurable.
     for (range, group) in model.layout.ranges() {
-        if *group == rmvp_recon::engine::Group::Grid {
+        if matches!(group, rmvp_recon::engine::Group::Grid { .. }) {
             let noise = random(range.len(), 12, 0.05);
             params[range.clone()].iter_mut().zip(noise).for_each(|(p, v)| *p += v);
         }

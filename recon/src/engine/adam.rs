@@ -69,14 +69,10 @@ impl Adam {
         let factor = Self::schedule(config, iteration, total);
         let c1 = 1.0 - BETA1.powi(self.steps as i32);
         let c2 = 1.0 - BETA2.powi(self.steps as i32);
-        let mut grid_level = 0;
         for (range, group) in layout.ranges() {
-            let (lr, eps) = match group {
+            let (lr, eps) = match *group {
                 Group::Network => (config.lr_network, 1e-8),
-                Group::Grid => {
-                    grid_level += 1;
-                    (config.lr_grid * config.grid_level_decay.powi(grid_level - 1), 1e-15)
-                }
+                Group::Grid { level } => (config.lr_grid * config.grid_level_decay.powi(level as i32), 1e-15),
                 Group::Variance => (config.lr_variance, 1e-8),
             };
             let lr = lr * factor;
@@ -103,8 +99,8 @@ mod tests {
     fn grid_levels_step_by_their_own_rates() {
         let mut layout = ParamLayout::default();
         layout.reserve(2, Group::Network);
-        for _ in 0..3 {
-            layout.reserve(2, Group::Grid);
+        for level in 0..3 {
+            layout.reserve(2, Group::Grid { level });
         }
         let config = AdamConfig {
             lr_network: 1e-3,

@@ -8,8 +8,11 @@ use std::ops::Range;
 pub enum Group {
     /// Dense network weights and biases.
     Network,
-    /// Hash-grid feature tables.
-    Grid,
+    /// One level's hash-grid feature table (level 0 the coarsest).
+    Grid {
+        /// The level.
+        level: usize,
+    },
     /// The NeuS inverse-standard-deviation parameter.
     Variance,
 }
