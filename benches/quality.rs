@@ -163,7 +163,9 @@ fn options(variant: &str, plan: &Plan) -> Options {
         "level-rates" => Options { grid_level_decay: Some(0.9), ..base },
         "no-geometric" => Options { geometric: false, ..base },
         "no-photometric" => Options { photometric: false, ..base },
-        other => panic!("unknown variant {other} (full, no-geometric, no-photometric, near-surface, wide-margin)"),
+        other => panic!(
+            "unknown variant {other} (full, no-geometric, no-photometric, near-surface, wide-margin, level-rates)"
+        ),
     }
 }
 

@@ -187,12 +187,17 @@ fn small_model() -> (Model, Vec<f32>) {
     let model = Model::new(config);
     let mut params = model.init(11);
     // Lively grid features, so that their gradients are measurable.
-    for (range, group) in model.layout.ranges() {
-        if matches!(group, rmvp_recon::engine::Group::Grid { .. }) {
-            let noise = random(range.len(), 12, 0.05);
-            params[range.clone()].iter_mut().zip(noise).for_each(|(p, v)| *p += v);
-        }
-    }
+    let grid: Vec<_> = model
+        .layout
+        .ranges()
+        .iter()
+        .filter(|(_, group)| matches!(group, rmvp_recon::engine::Group::Grid { .. }))
+        .map(|(range, _)| range.clone())
+        .collect();
+    // The levels' tables are contiguous: one noise sequence over all of them.
+    let all = grid.first().map_or(0, |r| r.start)..grid.last().map_or(0, |r| r.end);
+    let noise = random(all.len(), 12, 0.05);
+    params[all].iter_mut().zip(noise).for_each(|(p, v)| *p += v);
     (model, params)
 }
 

@@ -70,12 +70,10 @@ pub fn run(args: Args) -> Result<()> {
         mesh_device: args.mesh_device,
         checkpoint_every: args.checkpoint_every.max(1),
         batch_rays: args.batch,
-        sampling: None,
-        margin: None,
-        grid_level_decay: None,
         seed: args.seed,
         stop_after: args.stop_after,
         view_outputs: !args.mesh_only,
+        ..Options::default()
     };
     let total = options.config().iterations;
     let bar = progress(total as u64, "recon");

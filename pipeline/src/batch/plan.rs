@@ -76,15 +76,12 @@ impl Variant {
             geometric: !self.no_geometric,
             resume: true,
             mesh_resolution: self.mesh_res.unwrap_or(defaults.mesh_resolution),
-            mesh_device: defaults.mesh_device,
             checkpoint_every: self.checkpoint_every.unwrap_or(defaults.checkpoint_every).max(1),
             batch_rays: self.batch,
-            sampling: None,
-            margin: None,
-            grid_level_decay: None,
             seed,
             stop_after: None,
             view_outputs: !self.mesh_only,
+            ..defaults
         }
     }
 }

@@ -30,8 +30,8 @@ impl HashGrid {
         let resolutions = (0..levels).map(|l| (base as f64 * growth.powi(l as i32)).round() as u32).collect();
         let table = 1usize << log2_table;
         // One range per level, contiguous: Adam can give each level its own rate.
-        let offset = layout.reserve(table * FEATURES, Group::Grid { level: 0 });
-        for level in 1..levels {
+        let offset = layout.len();
+        for level in 0..levels {
             layout.reserve(table * FEATURES, Group::Grid { level });
         }
         Self { levels, table, resolutions, offset }
