@@ -4,11 +4,12 @@
 //! Chamfer, F-score, normal MAE on the training and on the held-out views.
 //!
 //! `cargo bench --bench quality [-- --scenes bumps,knot --variants full,no-geometric
-//! --res 256x256 --iters N --seed S --preset fast|dense|paper --mesh-res N --curve 250,500]`
-//! (part of `./run bench` with its defaults). `--curve` also measures the model at those
+//! --res 256x256 --views 6 --iters N --seed S --preset fast|dense|paper --mesh-res N
+//! --curve 250,500]` (part of `./run bench` with its defaults). `--views` sets the training
+//! views (the held-out six stay the same). `--curve` also measures the model at those
 //! iterations of the run (its mesh; training minutes so far): quality against time. Scenes are
-//! simulated once into `target/tmp/bench-quality/<WxH>/<scene>` and reused; each row is kept
-//! in `results.jsonl` there. The bunny comes from `$RMVP_MESHES` or `../shared/meshes`.
+//! simulated once into `target/tmp/bench-quality/<WxH>/<scene>` (`<WxH>-<N>views` for other
+//! than 6 training views) and reused; each row is kept in `results.jsonl` there. The bunny comes from `$RMVP_MESHES` or `../shared/meshes`.
 //! Variants not run by default, each the default with one change: `near-surface` 24 uniform
 //! and 40 up-sampled samples per ray instead of 32 and 32 (the same samples, more of them near
 //! the surface); `wide-margin` the masks dilated by a 32nd of the image width (8 pixels at
@@ -49,6 +50,7 @@ struct Run<'a> {
     variant: &'a str,
     preset: Preset,
     size: (u32, u32),
+    views: usize,
     seed: u64,
 }
 
@@ -91,7 +93,7 @@ fn measure(
         row.normal_mae_held_out_deg
     );
     let line = serde_json::json!({
-        "scene": row.scene, "variant": row.variant, "preset": row.preset, "size": row.size,
+        "scene": row.scene, "variant": row.variant, "preset": row.preset, "size": row.size, "views": run.views,
         "iterations": row.iterations, "seed": run.seed, "train_minutes": row.train_minutes,
         "output_minutes": row.output_minutes, "chamfer": row.chamfer, "f_score": row.f_score,
         "normal_mae_train_deg": row.normal_mae_train_deg, "normal_mae_held_out_deg": row.normal_mae_held_out_deg,
@@ -105,6 +107,8 @@ struct Plan {
     scenes: Vec<String>,
     variants: Vec<String>,
     size: (u32, u32),
+    /// Training views.
+    views: usize,
     iterations: Option<u32>,
     seed: u64,
     preset: Preset,
@@ -118,6 +122,7 @@ fn plan() -> Plan {
         scenes: SCENES.iter().map(|s| s.name.to_string()).collect(),
         variants: ["full", "no-geometric", "no-photometric"].map(String::from).to_vec(),
         size: (256, 256),
+        views: CaptureOptions::default().views,
         iterations: None,
         seed: 0,
         preset: Preset::Fast,
@@ -135,6 +140,7 @@ fn plan() -> Plan {
                 let (w, h) = value.split_once('x').expect("--res WxH");
                 plan.size = (w.parse().expect("width"), h.parse().expect("height"));
             }
+            "--views" => plan.views = value.parse().expect("--views N"),
             "--iters" => plan.iterations = Some(value.parse().expect("--iters N")),
             "--seed" => plan.seed = value.parse().expect("--seed N"),
             "--preset" => {
@@ -181,8 +187,13 @@ fn main() {
     }
     let plan = plan();
     let (w, h) = plan.size;
-    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("bench-quality/{w}x{h}"));
-    let capture = CaptureOptions { size: plan.size, meshes: meshes(), ..CaptureOptions::default() };
+    let defaults = CaptureOptions::default();
+    let folder = match plan.views {
+        n if n == defaults.views => format!("{w}x{h}"),
+        n => format!("{w}x{h}-{n}views"),
+    };
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench-quality").join(folder);
+    let capture = CaptureOptions { size: plan.size, views: plan.views, meshes: meshes(), ..defaults };
     println!("| scene | variant | iterations | minutes (train + outputs) | Chamfer | F-score | normal MAE train | held out |");
     println!("| --- | --- | --- | --- | --- | --- | --- | --- |");
     std::fs::create_dir_all(&root).expect("bench folder");
@@ -207,7 +218,14 @@ fn main() {
             };
             let out = dir.join(format!("{label}-seed{}", plan.seed));
             let _ = std::fs::remove_dir_all(&out);
-            let run = Run { scene: name, variant: &label, preset: plan.preset, size: (w, h), seed: plan.seed };
+            let run = Run {
+                scene: name,
+                variant: &label,
+                preset: plan.preset,
+                size: (w, h),
+                views: plan.views,
+                seed: plan.seed,
+            };
             let start = Instant::now();
             // Training time so far: the wall time less the time spent measuring the curve.
             let (mut trained, mut measuring) = (0.0, 0.0);
