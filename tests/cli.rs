@@ -5,27 +5,9 @@ use rmvp_dataset::summary::SceneSummary;
 use rmvp_pipeline::demo::DemoReport;
 use rmvp_testkit::fixture;
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn rmvp(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rmvp")).args(args).output().expect("rmvp runs")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = rmvp(args);
-    assert!(out.status.success(), "rmvp {args:?} failed:\n{}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn fails(args: &[&str]) -> String {
-    let out = rmvp(args);
-    assert!(!out.status.success(), "rmvp {args:?} should have failed");
-    String::from_utf8(out.stderr).unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+mod common;
+use common::{fails, ok, s};
 
 #[test]
 fn demo_captures_builds_a_dataset_and_reconstructs_it() {

@@ -27,27 +27,9 @@ use rmvp_pipeline::ground_truth::mask_iou;
 use rmvp_render::envmap::procedural_image;
 use rmvp_render::EnvMap;
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn rmvp(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rmvp")).args(args).output().expect("rmvp runs")
-}
-
-fn ok(args: &[&str]) -> String {
-    let out = rmvp(args);
-    assert!(out.status.success(), "rmvp {args:?} failed:\n{}", String::from_utf8_lossy(&out.stderr));
-    String::from_utf8(out.stdout).unwrap()
-}
-
-fn fails(args: &[&str]) -> String {
-    let out = rmvp(args);
-    assert!(!out.status.success(), "rmvp {args:?} should have failed");
-    String::from_utf8(out.stderr).unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+mod common;
+use common::{fails, ok, s};
 
 /// The lab's board: ChArUco, 10x8 squares of 30 mm (larger than `rmvp`'s default 8x6, so that
 /// enough corners show around the object).
