@@ -14,7 +14,9 @@
 //! and 40 up-sampled samples per ray instead of 32 and 32 (the same samples, more of them near
 //! the surface); `wide-margin` the masks dilated by a 32nd of the image width (8 pixels at
 //! 256, 38 at 1224) instead of 8 pixels; `level-rates` hash-grid level `l` learning at
-//! `0.9^l` of the coarsest level's rate.
+//! `0.9^l` of the coarsest level's rate; `learned-polarization` and `fixed-polarization` the
+//! specular lobe's degree of polarization scaled by a learned number, or NeRSP's fixed
+//! dielectric Fresnel; `rays-384` 384 rays per step instead of 256 (half as much time again).
 
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
@@ -167,10 +169,13 @@ fn options(variant: &str, plan: &Plan) -> Options {
         "near-surface" => Options { sampling: Some(Sampling { coarse: 24, fine: 40, steps: 4 }), ..base },
         "wide-margin" => Options { margin: Some(plan.size.0 as usize / 32), ..base },
         "level-rates" => Options { grid_level_decay: Some(0.9), ..base },
+        "learned-polarization" => Options { learned_polarization: Some(true), ..base },
+        "fixed-polarization" => Options { learned_polarization: Some(false), ..base },
+        "rays-384" => Options { batch_rays: Some(384), ..base },
         "no-geometric" => Options { geometric: false, ..base },
         "no-photometric" => Options { photometric: false, ..base },
         other => panic!(
-            "unknown variant {other} (full, no-geometric, no-photometric, near-surface, wide-margin, level-rates)"
+            "unknown variant {other} (full, no-geometric, no-photometric, near-surface, wide-margin, level-rates, learned-polarization, fixed-polarization, rays-384)"
         ),
     }
 }

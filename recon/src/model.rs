@@ -58,6 +58,10 @@ pub struct ModelConfig {
     pub color_hidden: usize,
     /// Hidden layers of the radiance networks.
     pub color_depth: usize,
+    /// Learn one scale of the specular lobe's degree of polarization for the whole object
+    /// ([`Radiance::specular_polarization`]); off: NeRSP's dielectric Fresnel as it is.
+    #[serde(default)]
+    pub learned_polarization: bool,
 }
 
 impl ModelConfig {
@@ -74,6 +78,7 @@ impl ModelConfig {
                 grid: None,
                 color_hidden: 256,
                 color_depth: 4,
+                learned_polarization: false,
             },
             Preset::Fast | Preset::Dense => Self {
                 preset,
@@ -85,6 +90,7 @@ impl ModelConfig {
                 grid: Some(if preset == Preset::Dense { (16, 19, 16, 2048) } else { (8, 16, 16, 256) }),
                 color_hidden: 64,
                 color_depth: 2,
+                learned_polarization: false,
             },
         }
     }
@@ -269,13 +275,14 @@ pub struct ShadingCache {
     ide_jacobian: Vec<[([f32; 3], f32); IDE_WIDTH]>,
 }
 
-/// The three radiance networks.
+/// The three radiance networks, and the specular lobe's polarization scale when it is learned.
 #[derive(Clone, Debug)]
 pub struct Radiance {
     diffuse: Mlp,
     roughness: Mlp,
     specular: Mlp,
     features: usize,
+    polarization: Option<usize>,
 }
 
 fn sigmoid(x: f32) -> f32 {
@@ -290,7 +297,22 @@ impl Radiance {
             roughness: Mlp::new(layout, 3 + f, h, d.min(2), 1, Activation::Relu, None),
             specular: Mlp::new(layout, IDE_WIDTH + 1 + f, h, d, 3, Activation::Relu, None),
             features: f,
+            polarization: None,
         }
+    }
+
+    /// The scale of the specular lobe's Fresnel degree of polarization, in [0, 1]: 1 is NeRSP's
+    /// dielectric (eta = 1.5); a conductor's reflection is nearly unpolarized (gold: at most
+    /// 0.07 where the dielectric reaches 1), which the fixed dielectric could only match by
+    /// turning normals towards the camera. Learned, one number per object, when the model has
+    /// it; its gradient passes the clamp unchanged, so it can return from beyond [0, 1].
+    pub fn specular_polarization(&self, params: &[f32]) -> f32 {
+        self.polarization.map_or(1.0, |i| params[i].clamp(0.0, 1.0))
+    }
+
+    /// Where the polarization scale sits in the parameter vector, when it is learned.
+    pub fn polarization_parameter(&self) -> Option<usize> {
+        self.polarization
     }
 
     fn init(&self, params: &mut [f32], rng: &mut Rng) {
@@ -356,10 +378,12 @@ impl Radiance {
                 .map(|&x| sigmoid(x))
                 .collect();
         }
+        let scale = self.specular_polarization(params);
         let mut stokes = vec![0f32; STOKES * n];
         for i in 0..n {
             let nv = row3(s.normals, i);
             let ((rho_d, rho_s), _) = degrees(dot(nv, row3(s.view, i)));
+            let rho_s = scale * rho_s;
             let ((c2, s2), _) = double_azimuth(nv, row3(s.frame_x, i), row3(s.frame_y, i));
             let out = &mut stokes[STOKES * i..STOKES * (i + 1)];
             for ch in 0..3 {
@@ -398,10 +422,13 @@ impl Radiance {
         let mut d_diffuse_raw = vec![0f32; 3 * n];
         let mut d_specular_raw = vec![0f32; 3 * n];
         let mut d_cos = vec![0f32; n];
+        let scale = self.specular_polarization(params);
+        let mut d_scale = 0f32;
         for i in 0..n {
             let (nv, v) = (row3(s.normals, i), row3(s.view, i));
             let c = dot(nv, v);
-            let ((rho_d, rho_s), (drho_d, drho_s)) = degrees(c);
+            let ((rho_d, fresnel_s), (drho_d, dfresnel_s)) = degrees(c);
+            let (rho_s, drho_s) = (scale * fresnel_s, scale * dfresnel_s);
             let ((c2, s2), (dc2, ds2)) = double_azimuth(nv, row3(s.frame_x, i), row3(s.frame_y, i));
             let g = &d_stokes[STOKES * i..STOKES * (i + 1)];
             let (mut g_rho_d, mut g_rho_s, mut g_c2, mut g_s2) = (0.0, 0.0, 0.0, 0.0);
@@ -419,9 +446,13 @@ impl Radiance {
                 }
             }
             d_cos[i] = g_rho_d * drho_d + g_rho_s * drho_s;
+            d_scale += g_rho_s * fresnel_s;
             for k in 0..3 {
                 d_normal[3 * i + k] += g_c2 * dc2[k] + g_s2 * ds2[k];
             }
+        }
+        if let Some(p) = self.polarization {
+            grad[p] += d_scale;
         }
         let d_in = self.diffuse.backward(params, &cache.diffuse, &d_diffuse_raw, grad);
         let width = 6 + f;
@@ -505,8 +536,11 @@ impl Model {
         // short prefix of the parameter vector (see `Field::backward`).
         let mut layout = ParamLayout::default();
         let mut field = Field::new(&mut layout, &config);
-        let radiance = Radiance::new(&mut layout, &config);
+        let mut radiance = Radiance::new(&mut layout, &config);
         let variance = layout.reserve(1, crate::engine::Group::Variance);
+        if config.learned_polarization {
+            radiance.polarization = Some(layout.reserve(1, crate::engine::Group::Network));
+        }
         let network_params = layout.len();
         field.reserve_grid(&mut layout, &config);
         Self { config, layout, field, radiance, variance, network_params }
@@ -525,6 +559,9 @@ impl Model {
         self.field.init(&mut params, &mut rng);
         self.radiance.init(&mut params, &mut rng);
         params[self.variance] = INITIAL_VARIANCE;
+        if let Some(p) = self.radiance.polarization {
+            params[p] = 1.0;
+        }
         params
     }
 

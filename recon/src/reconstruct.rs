@@ -43,6 +43,9 @@ pub struct Options {
     pub margin: Option<usize>,
     /// Learning rate of hash-grid level `l` relative to level 0, `decay^l` (default: the preset's).
     pub grid_level_decay: Option<f32>,
+    /// Learn the specular lobe's polarization scale (default: the preset's;
+    /// [`crate::model::Radiance::specular_polarization`]).
+    pub learned_polarization: Option<bool>,
     /// Random seed.
     pub seed: u64,
     /// Train at most this many iterations in this call, then checkpoint and return without
@@ -68,6 +71,7 @@ impl Default for Options {
             sampling: None,
             margin: None,
             grid_level_decay: None,
+            learned_polarization: None,
             seed: 0,
             stop_after: None,
             view_outputs: true,
@@ -94,6 +98,9 @@ impl Options {
         }
         if let Some(d) = self.grid_level_decay {
             config.adam.grid_level_decay = d;
+        }
+        if let Some(learned) = self.learned_polarization {
+            config.model.learned_polarization = learned;
         }
         config
     }

@@ -137,6 +137,9 @@ pub struct StepReport {
     pub losses: PerTerm<f64>,
     /// NeuS sharpness.
     pub inv_s: f32,
+    /// The specular lobe's learned polarization scale, when the model learns it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub polarization: Option<f32>,
     /// Rays rendered.
     pub rays: usize,
     /// Samples evaluated (each costs 7 field evaluations).
@@ -286,6 +289,11 @@ impl Trainer {
             losses: sums.losses,
             loss: sums.losses.iter().map(|(term, value)| w[term] as f64 * value).sum(),
             inv_s: self.model.inv_s(&self.params),
+            polarization: self
+                .model
+                .radiance
+                .polarization_parameter()
+                .map(|_| self.model.radiance.specular_polarization(&self.params)),
             rays: batch.len(),
             samples: sums.samples,
             lr_factor: Adam::schedule(&self.config.adam, it, self.config.iterations),

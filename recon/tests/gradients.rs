@@ -184,8 +184,11 @@ fn small_model() -> (Model, Vec<f32>) {
     config.grid = Some((4, 12, 8, 32));
     config.features = 5;
     config.color_hidden = 16;
+    config.learned_polarization = true;
     let model = Model::new(config);
     let mut params = model.init(11);
+    // Inside its clamp, where the straight-through gradient is the derivative.
+    params[model.radiance.polarization_parameter().expect("learned")] = 0.6;
     // Lively grid features, so that their gradients are measurable.
     let grid: Vec<_> = model
         .layout
@@ -251,6 +254,10 @@ fn shading_networks_and_pbrdf() {
         let (dn, df) = model.radiance.shade_backward(&params, &input, &cache, &w, &mut grad);
         let network: Vec<usize> = (0..params.len()).filter(|&i| grad[i] != 0.0).collect();
         check("radiance parameters", &params, &grad, &network, 1e-3, 2e-2, |p| run(p, &normals, &features));
+        let scale = model.radiance.polarization_parameter().expect("learned");
+        if !diffuse_only {
+            check("polarization scale", &params, &grad, &[scale], 1e-3, 1e-2, |p| run(p, &normals, &features));
+        }
         check("shading normals", &normals, &dn, &(0..3 * n).collect::<Vec<_>>(), 1e-3, 2e-2, |nn| {
             run(&params, nn, &features)
         });
