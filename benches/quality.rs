@@ -16,7 +16,7 @@
 //! 256, 38 at 1224) instead of 8 pixels; `level-rates` hash-grid level `l` learning at
 //! `0.9^l` of the coarsest level's rate; `learned-polarization` and `fixed-polarization` the
 //! specular lobe's degree of polarization scaled by a learned number, or NeRSP's fixed
-//! dielectric Fresnel; `rays-384` 384 rays per step instead of 256 (half as much time again).
+//! dielectric Fresnel.
 
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
@@ -171,11 +171,10 @@ fn options(variant: &str, plan: &Plan) -> Options {
         "level-rates" => Options { grid_level_decay: Some(0.9), ..base },
         "learned-polarization" => Options { learned_polarization: Some(true), ..base },
         "fixed-polarization" => Options { learned_polarization: Some(false), ..base },
-        "rays-384" => Options { batch_rays: Some(384), ..base },
         "no-geometric" => Options { geometric: false, ..base },
         "no-photometric" => Options { photometric: false, ..base },
         other => panic!(
-            "unknown variant {other} (full, no-geometric, no-photometric, near-surface, wide-margin, level-rates, learned-polarization, fixed-polarization, rays-384)"
+            "unknown variant {other} (full, no-geometric, no-photometric, near-surface, wide-margin, level-rates, learned-polarization, fixed-polarization)"
         ),
     }
 }

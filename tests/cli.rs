@@ -396,6 +396,21 @@ fn recon_resumes_where_it_stopped_and_reports_bad_input() {
         assert!(stopped.join(file).is_file(), "{file}");
     }
 
+    // The learned polarization scale: logged at every step, printed at the end, and moved by
+    // training from its start at 1 (the dielectric).
+    let learned = tmp.path().join("learned");
+    let printed = recon(&learned, &["--learned-polarization", "--mesh-only"]);
+    let scales: Vec<f64> = std::fs::read_to_string(learned.join("log.jsonl"))
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["polarization"].as_f64().unwrap())
+        .collect();
+    assert_eq!(scales.len(), 6);
+    assert_eq!(scales[0], 1.0);
+    assert!(scales[5] < 1.0 && scales[5] > 0.9, "{scales:?}");
+    assert!(printed.contains("specular polarization scale learned"), "{printed}");
+    assert!(!log.contains("polarization"), "the default model learns no scale");
+
     let err = fails(&["recon", s(&tmp.path().join("missing")), "-o", s(&tmp.path().join("x"))]);
     assert!(err.contains("missing"), "{err}");
 }

@@ -40,6 +40,11 @@ pub struct Args {
     /// driver and NVRTC; training stays on the CPU).
     #[arg(long, value_enum, default_value_t = Options::default().mesh_device)]
     mesh_device: Device,
+    /// Learn one scale of the specular lobe's degree of polarization for the object (a
+    /// conductor's reflection is nearly unpolarized; NeRSP's fixed dielectric Fresnel is the
+    /// default); the value learned is in log.jsonl (`polarization`) and printed at the end.
+    #[arg(long)]
+    learned_polarization: bool,
     /// Rays per iteration (default: the preset's; fast 256, paper 512).
     #[arg(long)]
     batch: Option<usize>,
@@ -70,6 +75,7 @@ pub fn run(args: Args) -> Result<()> {
         mesh_device: args.mesh_device,
         checkpoint_every: args.checkpoint_every.max(1),
         batch_rays: args.batch,
+        learned_polarization: args.learned_polarization.then_some(true),
         seed: args.seed,
         stop_after: args.stop_after,
         view_outputs: !args.mesh_only,
@@ -92,6 +98,12 @@ pub fn run(args: Args) -> Result<()> {
     })
     .with_context(|| format!("reconstructing {}", args.scene.display()))?;
     bar.finish();
+    if trainer.model.radiance.polarization_parameter().is_some() {
+        println!(
+            "specular polarization scale learned: {:.3} (1: a dielectric of index 1.5)",
+            trainer.model.radiance.specular_polarization(&trainer.params)
+        );
+    }
     if trainer.iteration < trainer.config.iterations {
         println!("stopped at iteration {} of {}; continue with --resume", trainer.iteration, trainer.config.iterations);
     } else {
