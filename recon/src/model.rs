@@ -315,6 +315,12 @@ impl Radiance {
         self.polarization
     }
 
+    /// The learned polarization scale ([`Radiance::specular_polarization`]); `None` when the
+    /// model keeps NeRSP's fixed dielectric.
+    pub fn learned_polarization(&self, params: &[f32]) -> Option<f32> {
+        self.polarization.map(|_| self.specular_polarization(params))
+    }
+
     fn init(&self, params: &mut [f32], rng: &mut Rng) {
         for mlp in [&self.diffuse, &self.roughness, &self.specular] {
             mlp.init(params, Init::Default, rng);

@@ -289,11 +289,7 @@ impl Trainer {
             losses: sums.losses,
             loss: sums.losses.iter().map(|(term, value)| w[term] as f64 * value).sum(),
             inv_s: self.model.inv_s(&self.params),
-            polarization: self
-                .model
-                .radiance
-                .polarization_parameter()
-                .map(|_| self.model.radiance.specular_polarization(&self.params)),
+            polarization: self.model.radiance.learned_polarization(&self.params),
             rays: batch.len(),
             samples: sums.samples,
             lr_factor: Adam::schedule(&self.config.adam, it, self.config.iterations),

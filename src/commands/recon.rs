@@ -98,11 +98,8 @@ pub fn run(args: Args) -> Result<()> {
     })
     .with_context(|| format!("reconstructing {}", args.scene.display()))?;
     bar.finish();
-    if trainer.model.radiance.polarization_parameter().is_some() {
-        println!(
-            "specular polarization scale learned: {:.3} (1: a dielectric of index 1.5)",
-            trainer.model.radiance.specular_polarization(&trainer.params)
-        );
+    if let Some(scale) = trainer.model.radiance.learned_polarization(&trainer.params) {
+        println!("specular polarization scale learned: {scale:.3} (1: a dielectric of index 1.5)");
     }
     if trainer.iteration < trainer.config.iterations {
         println!("stopped at iteration {} of {}; continue with --resume", trainer.iteration, trainer.config.iterations);
