@@ -35,22 +35,28 @@ impl Activation {
 
 // The two loops that take most of a training step outside the matrix products, compiled for
 // the widest vectors the processor has (AVX-512 or AVX2, chosen at run time). Without `mul_add`
-// no multiplication and addition are fused, so every width gives the same bits.
+// no multiplication and addition are fused, so every width gives the same bits. Plain `for`
+// loops: an iterator's `extend` or `for_each` would call a generic `fold` that is compiled
+// once, without the wider instructions.
 
 /// `out = softplus(x)`: `max(x, 0) + log1p(exp(-|beta x|)) / beta`, branch-free so it vectorises.
 #[multiversion(targets("x86_64+avx512f", "x86_64+avx2"))]
 fn softplus(beta: f32, x: &[f32], out: &mut Vec<f32>) {
-    out.extend(x.iter().map(|&v| v.max(0.0) + log1p_unit(exp_neg((beta * v).abs())) / beta))
+    out.clear();
+    out.resize(x.len(), 0.0);
+    for (o, &v) in out.iter_mut().zip(x) {
+        *o = v.max(0.0) + log1p_unit(exp_neg((beta * v).abs())) / beta;
+    }
 }
 
 /// `d *= softplus'(x)`, i.e. `sigmoid(beta x)`, from `e = exp(-|beta x|)`.
 #[multiversion(targets("x86_64+avx512f", "x86_64+avx2"))]
 fn scale_by_softplus_derivative(beta: f32, x: &[f32], d: &mut [f32]) {
-    d.iter_mut().zip(x).for_each(|(g, &v)| {
+    for (g, &v) in d.iter_mut().zip(x) {
         let e = exp_neg((beta * v).abs());
         let s = if v >= 0.0 { 1.0 } else { e };
         *g *= s / (1.0 + e);
-    })
+    }
 }
 
 /// `exp(-a)` for `a >= 0` (held at `exp(-87)` beyond), relative error below 3e-7: Cody-Waite range reduction
