@@ -1,33 +1,56 @@
 //! What a reconstruction leaves on disk besides the mesh: per-view normal maps and re-rendered
 //! Stokes images from the trained field, and a picture comparing them with the input.
 //!
-//! Forward only, and only where the surface is: every view is first sphere traced on a coarse
-//! grid of pixels ([`BLOCK`] apart); the pixels of the blocks around a hit, and those of the
-//! view's mask when it has one, are then traced one by one, each from a little before the
-//! nearest surface that the coarse rays met around it. A pixel whose ray meets the surface
-//! gets the SDF's normal there and, in the views that want Stokes, the radiance networks'
-//! Stokes at that point: surface rendering, what NeuS's volume rendering converges to once
-//! the surface is sharp (within 2 % of the full sampling's S0, median, in
-//! `tests/training.rs`), at one field evaluation per pixel instead of a band of samples.
-//! Everything else is background: zero.
+//! Forward only, and only where the surface is: the extracted mesh (the field's zero level set
+//! on the marching grid) is ray cast through a BVH, which finds for every pixel whether and
+//! where its ray meets the surface; each pixel it hits is then sphere traced in the field from
+//! a little (two marching cells) before that point, onto the field's own zero crossing. A
+//! pixel whose ray meets the surface gets the SDF's normal there and, in the views that want
+//! Stokes, the radiance networks' Stokes at that point: surface rendering, what NeuS's volume
+//! rendering converges to once the surface is sharp (within 2 % of the full sampling's S0,
+//! median, in `tests/training.rs`), at one field evaluation per pixel instead of a band of
+//! samples. Everything else is background: zero.
 
-use crate::data::dilate;
-use crate::model::STOKES;
+use crate::data::Frame;
+use crate::model::{Model, STOKES};
 use crate::trace::{sphere_trace, TraceLimits, TraceRay};
 use crate::train::Trainer;
 use crate::volume::{shade_points, Ray};
 use rayon::prelude::*;
-use rmvp_dataset::{Camera, Image, Stokes};
+use rmvp_dataset::{Camera, Image, Mesh, Stokes};
+use rmvp_render::bvh::Bvh;
+use rmvp_render::math::Vec3;
 
-/// Side of the blocks of pixels the first, coarse trace looks at (one ray each).
-pub const BLOCK: usize = 4;
-/// How far before the nearest surface met by the coarse rays around a pixel its own ray
-/// starts (unit-sphere units).
-const LEAD: f32 = 0.1;
 /// Surface tracing: slightly short steps (a learned SDF's slope can exceed 1), at most 0.05 long.
 const SURFACE: TraceLimits = TraceLimits { step_scale: 0.9, max_step: 0.05, max_steps: 128 };
-/// Rays per parallel work item.
-const CHUNK: usize = 256;
+/// Rays per parallel work item (and per batch of field evaluations).
+const CHUNK: usize = 4096;
+
+/// The extracted surface in the unit frame, ready to be ray cast: where each pixel's ray meets
+/// the field's surface, to within a marching cell.
+pub struct SurfaceGuide {
+    bvh: Bvh,
+    /// The marching grid's cell (unit-sphere units).
+    cell: f32,
+}
+
+impl SurfaceGuide {
+    /// `mesh` (world frame), extracted on an `n^3` grid over the unit cube of `frame`.
+    pub fn new(mesh: &Mesh, frame: &Frame, n: usize) -> Self {
+        let positions: Vec<[f32; 3]> = mesh
+            .positions
+            .par_iter()
+            .map(|p| frame.point_from_world(&nalgebra::Point3::new(p[0] as f64, p[1] as f64, p[2] as f64)))
+            .collect();
+        Self { bvh: Bvh::new(&positions, &mesh.faces), cell: 2.0 / n as f32 }
+    }
+
+    /// Where `ray` first meets the mesh, if it does inside its span.
+    fn first_hit(&self, ray: &Ray) -> Option<f32> {
+        let (o, d) = (Vec3::from_array(ray.origin), Vec3::from_array(ray.dir));
+        self.bvh.intersect(o, d, ray.near, ray.far).map(|hit| hit.t)
+    }
+}
 
 /// Images rendered from the trained field in one view.
 pub struct RenderedView {
@@ -37,73 +60,33 @@ pub struct RenderedView {
     pub mask: Image<u8>,
     /// World-frame unit normals of the surface (0 elsewhere).
     pub normals: Image<f32>,
-    /// Rays traced (coarse and fine) and pixels on the surface.
-    pub traced: usize,
     /// Pixels on the surface.
     pub surface_pixels: usize,
 }
 
-/// Render `camera`'s view of the trained field: normals, and Stokes when `with_stokes`.
-/// `mask` (the view's object mask, if known) adds its pixels, dilated by two, to those traced.
-pub fn render_view(trainer: &Trainer, camera: &Camera, mask: Option<&Image<u8>>, with_stokes: bool) -> RenderedView {
+/// Render `camera`'s view of the trained field, whose extracted surface `guide` holds:
+/// normals, and Stokes when `with_stokes`.
+pub fn render_view(trainer: &Trainer, camera: &Camera, guide: &SurfaceGuide, with_stokes: bool) -> RenderedView {
     let (model, params, frame) = (&trainer.model, &trainer.params[..], &trainer.set.frame);
     let level_weight = trainer.level_weight();
     let fd_step = trainer.fd_step(&level_weight);
     let (w, h) = (camera.width as usize, camera.height as usize);
-    let ray_at = |k: usize| frame.pixel_ray(camera, (k % w) as u32, (k / w) as u32);
-    // Each ray traced from `start(pixel)` (no nearer than its entry into the unit sphere); a
-    // ray that finds itself inside the surface at a later start (something nearer than its
-    // neighbours' surface) is traced again from its entry.
-    let trace = |pixels: &[usize], start: &(dyn Fn(usize) -> f32 + Sync)| -> Vec<(usize, Ray, f32)> {
-        pixels
-            .par_chunks(CHUNK)
-            .flat_map_iter(|chunk| {
-                let rays: Vec<(usize, Ray)> = chunk.iter().filter_map(|&k| ray_at(k).map(|r| (k, r))).collect();
-                let traced: Vec<TraceRay> = rays
-                    .iter()
-                    .map(|&(k, r)| TraceRay { origin: r.origin, dir: r.dir, start: start(k).max(r.near), end: r.far })
-                    .collect();
-                let mut hits = sphere_trace(model, params, &level_weight, &traced, SURFACE);
-                let again: Vec<usize> = (0..rays.len())
-                    .filter(|&i| traced[i].start > rays[i].1.near && hits[i] == Some(traced[i].start))
-                    .collect();
-                if !again.is_empty() {
-                    let from_entry: Vec<TraceRay> =
-                        again.iter().map(|&i| TraceRay { start: rays[i].1.near, ..traced[i] }).collect();
-                    for (i, hit) in
-                        again.into_iter().zip(sphere_trace(model, params, &level_weight, &from_entry, SURFACE))
-                    {
-                        hits[i] = hit;
-                    }
-                }
-                rays.into_iter().zip(hits).filter_map(|((k, r), t)| Some((k, r, t?))).collect::<Vec<_>>()
-            })
-            .collect()
-    };
-
-    // Coarse: one ray per block; the blocks around a hit are traced in full, each ray from a
-    // little before the nearest surface that the coarse rays met around it.
-    let (bw, bh) = (w.div_ceil(BLOCK), h.div_ceil(BLOCK));
-    let centres: Vec<usize> = (0..bw * bh)
-        .map(|b| ((b / bw) * BLOCK + BLOCK / 2).min(h - 1) * w + ((b % bw) * BLOCK + BLOCK / 2).min(w - 1))
+    let on_mesh: Vec<(usize, Ray, f32)> = (0..w * h)
+        .into_par_iter()
+        .with_min_len(CHUNK)
+        .filter_map(|k| {
+            let ray = frame.pixel_ray(camera, (k % w) as u32, (k / w) as u32)?;
+            let t = guide.first_hit(&ray)?;
+            Some((k, ray, t))
+        })
         .collect();
-    let mut block_depth = vec![f32::INFINITY; bw * bh];
-    for (k, _, t) in trace(&centres, &|_| 0.0) {
-        block_depth[(k / w) / BLOCK * bw + (k % w) / BLOCK] = t;
-    }
-    let nearest_around = |k: usize| {
-        let (bx, by) = ((k % w) / BLOCK, (k / w) / BLOCK);
-        let (xs, ys) = (bx.saturating_sub(1)..(bx + 2).min(bw), by.saturating_sub(1)..(by + 2).min(bh));
-        ys.flat_map(|y| xs.clone().map(move |x| y * bw + x)).map(|b| block_depth[b]).fold(f32::INFINITY, f32::min)
-    };
-    let masked = mask.map(|m| dilate(&m.data().iter().map(|&v| v > 127).collect::<Vec<_>>(), w, h, 2));
-    let candidates: Vec<usize> =
-        (0..w * h).filter(|&k| nearest_around(k).is_finite() || masked.as_ref().is_some_and(|m| m[k])).collect();
-    let traced = centres.len() + candidates.len();
-    let surface = trace(&candidates, &|k| match nearest_around(k) {
-        d if d.is_finite() => d - LEAD,
-        _ => 0.0,
-    });
+    let surface: Vec<(usize, Ray, f32)> = on_mesh
+        .par_chunks(CHUNK)
+        .flat_map_iter(|chunk| {
+            let depths = field_depths(model, params, &level_weight, chunk, guide.cell);
+            chunk.iter().zip(depths).filter_map(|(&(k, r, _), t)| Some((k, r, t?))).collect::<Vec<_>>()
+        })
+        .collect();
 
     // The surface: the SDF gradient at each hit is its normal; with the field's features
     // there, the radiance networks shade it once (what NeuS's compositing converges to once
@@ -135,5 +118,59 @@ pub fn render_view(trainer: &Trainer, camera: &Camera, mask: Option<&Image<u8>>,
     }
     let [s0, s1, s2] = s;
     let stokes = with_stokes.then_some(Stokes { s0, s1, s2 });
-    RenderedView { stokes, mask, normals, traced, surface_pixels: surface.len() }
+    RenderedView { stokes, mask, normals, surface_pixels: surface.len() }
+}
+
+/// Where each ray of `rays` (pixel, ray, depth of its mesh hit) crosses the field's zero level
+/// set near its mesh hit: the secant between the SDF one marching `cell` before and one after
+/// (two field evaluations per ray, in one batch). The few rays whose SDF keeps its sign there
+/// (grazing rays, parts thinner than a cell) are sphere traced from two cells before the mesh,
+/// and from their entry into the unit sphere if they start inside the surface; `None` where
+/// the field has no surface along the ray.
+fn field_depths(
+    model: &Model,
+    params: &[f32],
+    level_weight: &[f32],
+    rays: &[(usize, Ray, f32)],
+    cell: f32,
+) -> Vec<Option<f32>> {
+    let before = |r: &Ray, t: f32| (t - cell).max(r.near);
+    let after = |r: &Ray, t: f32| (t + cell).min(r.far);
+    let points: Vec<f32> =
+        rays.iter().flat_map(|(_, r, t)| [r.at(before(r, *t)), r.at(after(r, *t))]).flatten().collect();
+    let sdf = model.field.sdf(params, &points, level_weight);
+    let mut depths: Vec<Option<f32>> = rays
+        .iter()
+        .zip(sdf.chunks_exact(2))
+        .map(|((_, r, t), s)| {
+            let (a, b) = (before(r, *t), after(r, *t));
+            (s[0] > 0.0 && s[1] <= 0.0).then(|| a + (b - a) * s[0] / (s[0] - s[1]))
+        })
+        .collect();
+    let missed: Vec<usize> = (0..rays.len()).filter(|&i| depths[i].is_none()).collect();
+    if missed.is_empty() {
+        return depths;
+    }
+    let traced: Vec<TraceRay> = missed
+        .iter()
+        .map(|&i| {
+            let (_, r, t) = rays[i];
+            TraceRay { origin: r.origin, dir: r.dir, start: (t - 2.0 * cell).max(r.near), end: r.far }
+        })
+        .collect();
+    let hits = sphere_trace(model, params, level_weight, &traced, SURFACE);
+    // A ray that is on or inside the surface where it starts is traced again from its entry.
+    let again: Vec<usize> = (0..missed.len())
+        .filter(|&m| traced[m].start > rays[missed[m]].1.near && hits[m] == Some(traced[m].start))
+        .collect();
+    let from_entry: Vec<TraceRay> =
+        again.iter().map(|&m| TraceRay { start: rays[missed[m]].1.near, ..traced[m] }).collect();
+    let mut hits = hits;
+    for (m, hit) in again.into_iter().zip(sphere_trace(model, params, level_weight, &from_entry, SURFACE)) {
+        hits[m] = hit;
+    }
+    for (m, hit) in missed.into_iter().zip(hits) {
+        depths[m] = hit;
+    }
+    depths
 }

@@ -4,14 +4,14 @@
 use crate::data::TrainingSet;
 use crate::extract::{extract_mesh, CpuSdf, Device};
 use crate::model::Preset;
-use crate::output::render_view;
+use crate::output::{render_view, SurfaceGuide};
 use crate::train::{StepReport, TrainConfig, Trainer};
 use crate::volume::Sampling;
 use crate::{Error, Result};
 use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::{exr, png};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, normal_picture, preview};
-use rmvp_dataset::{Scene, Split};
+use rmvp_dataset::{Mesh, Scene, Split};
 use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::Path;
@@ -197,8 +197,9 @@ fn no_cuda_support() -> Error {
     Error::Cuda("this build has no CUDA support (rmvp-recon's `cuda` feature)".into())
 }
 
-/// The extracted surface alone, `out/mesh.ply` (world frame), its SDF evaluated on `device`.
-pub fn write_mesh(trainer: &Trainer, out: &Path, mesh_resolution: usize, device: Device) -> Result<()> {
+/// The extracted surface alone, `out/mesh.ply` (world frame), its SDF evaluated on `device`;
+/// returns the mesh.
+pub fn write_mesh(trainer: &Trainer, out: &Path, mesh_resolution: usize, device: Device) -> Result<Mesh> {
     let lw = trainer.level_weight();
     let (model, params, frame, fd_step) = (&trainer.model, &trainer.params, &trainer.set.frame, trainer.fd_step(&lw));
     let mesh = match device {
@@ -215,7 +216,7 @@ pub fn write_mesh(trainer: &Trainer, out: &Path, mesh_resolution: usize, device:
         return Err(Error::NoSurface);
     }
     mesh.write(&out.join(MESH))?;
-    Ok(())
+    Ok(mesh)
 }
 
 /// Mesh, normal maps (every view), re-rendered Stokes (training views) and `comparison.png`.
@@ -226,7 +227,8 @@ pub fn write_results(
     mesh_resolution: usize,
     mesh_device: Device,
 ) -> Result<()> {
-    write_mesh(trainer, out, mesh_resolution, mesh_device)?;
+    let mesh = write_mesh(trainer, out, mesh_resolution, mesh_device)?;
+    let guide = SurfaceGuide::new(&mesh, &trainer.set.frame, mesh_resolution);
     let (normals_dir, stokes_dir) = (out.join("normals"), out.join("stokes"));
     for d in [&normals_dir, &stokes_dir] {
         std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
@@ -234,7 +236,7 @@ pub fn write_results(
     let mut tiles = Vec::new();
     for view in &scene.views {
         let train = view.split == Split::Train;
-        let r = render_view(trainer, &view.camera, view.mask.as_ref(), train);
+        let r = render_view(trainer, &view.camera, &guide, train);
         exr::write_exr(&normals_dir.join(format!("{}.exr", view.name)), &r.normals, &["N.X", "N.Y", "N.Z"])?;
         png::write_png_u8(&normals_dir.join(format!("{}.png", view.name)), &normal_picture(&r.normals))?;
         let Some(stokes) = &r.stokes else { continue };

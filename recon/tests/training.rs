@@ -6,7 +6,7 @@ use rmvp_dataset::{Scene, Split};
 use rmvp_recon::data::TrainingSet;
 use rmvp_recon::extract::{extract_mesh, CpuSdf};
 use rmvp_recon::model::Preset;
-use rmvp_recon::output::render_view as render_outputs;
+use rmvp_recon::output::{render_view as render_outputs, SurfaceGuide};
 use rmvp_recon::reconstruct::{reconstruct, Options};
 use rmvp_recon::train::{StepEvent, TrainConfig, Trainer};
 use rmvp_recon::volume::{sample_depths, Forward};
@@ -70,11 +70,12 @@ fn analytic_sphere_converges_to_the_sphere() {
     assert!(mean_error < 0.025, "mean radial error {mean_error}");
     assert!(worst < 0.15, "worst radial error {worst}");
 
-    // Outputs, forward only where the surface is: the silhouette and normals of the learned
-    // surface as the extracted mesh, ray cast, has them; and Stokes shaded at the surface as
-    // the full NeuS sampling renders them.
+    // Outputs, forward only where the surface is, found through the coarse mesh above: the
+    // silhouette and normals of the learned surface as a finer extracted mesh, ray cast, has
+    // them; and Stokes shaded at the surface as the full NeuS sampling renders them.
     let view = &scene.views[1];
-    let out = render_outputs(&trainer, &view.camera, None, true);
+    let guide = SurfaceGuide::new(&mesh, &trainer.set.frame, 64);
+    let out = render_outputs(&trainer, &view.camera, &guide, true);
     let fine =
         extract_mesh(&CpuSdf::new(&trainer.model, &trainer.params, &lw), 160, &trainer.set.frame, trainer.fd_step(&lw))
             .unwrap();
