@@ -4,7 +4,7 @@
 //! Chamfer, F-score, normal MAE on the training and on the held-out views.
 //!
 //! `cargo bench --bench quality [-- --scenes bumps,knot --variants full,no-geometric
-//! --res 256x256 --views 6 --iters N --seed S --preset fast|dense|paper --mesh-res N
+//! --res 256x256 --views 6 --iters N --rays N --seed S --preset fast|dense|paper --mesh-res N
 //! --curve 250,500]` (part of `./run bench` with its defaults). `--views` sets the training
 //! views (the held-out six stay the same). `--curve` also measures the model at those
 //! iterations of the run (its mesh; training minutes so far): quality against time. Scenes are
@@ -112,6 +112,8 @@ struct Plan {
     /// Training views.
     views: usize,
     iterations: Option<u32>,
+    /// Rays per iteration (default: the preset's).
+    rays: Option<usize>,
     seed: u64,
     preset: Preset,
     mesh_resolution: usize,
@@ -126,6 +128,7 @@ fn plan() -> Plan {
         size: (256, 256),
         views: CaptureOptions::default().views,
         iterations: None,
+        rays: None,
         seed: 0,
         preset: Preset::Fast,
         mesh_resolution: Options::default().mesh_resolution,
@@ -144,6 +147,7 @@ fn plan() -> Plan {
             }
             "--views" => plan.views = value.parse().expect("--views N"),
             "--iters" => plan.iterations = Some(value.parse().expect("--iters N")),
+            "--rays" => plan.rays = Some(value.parse().expect("--rays N")),
             "--seed" => plan.seed = value.parse().expect("--seed N"),
             "--preset" => {
                 plan.preset = serde_json::from_value(value.as_str().into()).expect("--preset fast|dense|paper")
@@ -160,6 +164,7 @@ fn options(variant: &str, plan: &Plan) -> Options {
     let base = Options {
         preset: plan.preset,
         iterations: plan.iterations,
+        batch_rays: plan.rays,
         seed: plan.seed,
         mesh_resolution: plan.mesh_resolution,
         ..Options::default()
@@ -216,10 +221,17 @@ fn main() {
         let gt = data.mesh.clone().expect("ground-truth mesh");
         for variant in &plan.variants {
             let options = options(variant, &plan);
-            let label = match plan.preset {
+            let mut label = match plan.preset {
                 Preset::Fast => variant.clone(),
                 other => format!("{}-{variant}", serde_json::to_value(other).expect("a name")).replace('"', ""),
             };
+            // Runs of other lengths or batches keep their own folders and rows.
+            if let Some(n) = plan.iterations {
+                label += &format!("-{n}it");
+            }
+            if let Some(n) = plan.rays {
+                label += &format!("-{n}rays");
+            }
             let out = dir.join(format!("{label}-seed{}", plan.seed));
             let _ = std::fs::remove_dir_all(&out);
             let run = Run {
