@@ -21,7 +21,7 @@ pub struct Args {
     /// rays, 4000 iterations: a dataset's reference shape) or `paper` (NeRSP's 8x256 MLP).
     #[arg(long, value_enum, default_value_t = Options::default().preset)]
     preset: Preset,
-    /// Training iterations (default: the preset's; fast 2000, about 4 minutes on 2 cores).
+    /// Training iterations (default: the preset's; fast 3000, about 6 minutes on 2 cores).
     #[arg(long)]
     iters: Option<u32>,
     /// Photometric cue only (PANDORA-like ablation).
