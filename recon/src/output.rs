@@ -3,8 +3,9 @@
 //!
 //! Forward only, and only where the surface is: the extracted mesh (the field's zero level set
 //! on the marching grid) is ray cast through a BVH, which finds for every pixel whether and
-//! where its ray meets the surface; each pixel it hits is then sphere traced in the field from
-//! a little (two marching cells) before that point, onto the field's own zero crossing. A
+//! where its ray meets the surface; each pixel it hits is then placed on the field's own zero
+//! crossing by a secant across a marching cell either side of that point (sphere traced from
+//! two cells before it where the SDF keeps its sign there). A
 //! pixel whose ray meets the surface gets the SDF's normal there and, in the views that want
 //! Stokes, the radiance networks' Stokes at that point: surface rendering, what NeuS's volume
 //! rendering converges to once the surface is sharp (within 2 % of the full sampling's S0,
@@ -158,14 +159,13 @@ fn field_depths(
             TraceRay { origin: r.origin, dir: r.dir, start: (t - 2.0 * cell).max(r.near), end: r.far }
         })
         .collect();
-    let hits = sphere_trace(model, params, level_weight, &traced, SURFACE);
+    let mut hits = sphere_trace(model, params, level_weight, &traced, SURFACE);
     // A ray that is on or inside the surface where it starts is traced again from its entry.
     let again: Vec<usize> = (0..missed.len())
         .filter(|&m| traced[m].start > rays[missed[m]].1.near && hits[m] == Some(traced[m].start))
         .collect();
     let from_entry: Vec<TraceRay> =
         again.iter().map(|&m| TraceRay { start: rays[missed[m]].1.near, ..traced[m] }).collect();
-    let mut hits = hits;
     for (m, hit) in again.into_iter().zip(sphere_trace(model, params, level_weight, &from_entry, SURFACE)) {
         hits[m] = hit;
     }
