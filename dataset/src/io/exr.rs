@@ -3,8 +3,8 @@
 use super::atomic::write_atomically;
 use crate::{Error, Image, Result};
 use exr::prelude::{
-    read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrFile, Layer, LayerAttributes, ReadChannels,
-    ReadLayers, WritableImage,
+    read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrFile, Layer, LayerAttributes, LineOrder,
+    ReadChannels, ReadLayers, WritableImage,
 };
 use std::path::Path;
 
@@ -56,7 +56,14 @@ pub fn read_exr(path: &Path, names: &[&str]) -> Result<Image<f32>> {
     Image::from_vec(w, h, names.len(), data)
 }
 
-/// Write an image as a 32-bit float EXR, channel `i` named `names[i]`, losslessly compressed.
+/// How our EXR files are encoded: the `exr` crate's fast lossless RLE tiles, stored in increasing
+/// line order. Its default order ("unspecified") writes tiles as the compressing threads finish
+/// them, so the same pixels gave different bytes from run to run, and a published release's
+/// checksums changed on every rebuild; in a fixed order the file is a function of its pixels.
+const ENCODING: Encoding = Encoding { line_order: LineOrder::Increasing, ..Encoding::FAST_LOSSLESS };
+
+/// Write an image as a 32-bit float EXR, channel `i` named `names[i]`, losslessly compressed; the
+/// same image always gives the same bytes.
 pub fn write_exr(path: &Path, image: &Image<f32>, names: &[&str]) -> Result<()> {
     if names.len() != image.channels() {
         return Err(Error::format(
@@ -69,12 +76,40 @@ pub fn write_exr(path: &Path, image: &Image<f32>, names: &[&str]) -> Result<()> 
         .enumerate()
         .map(|(c, name)| AnyChannel::new(*name, FlatSamples::F32(image.channel(c).into_vec())))
         .collect();
-    let layer = Layer::new(
-        (image.width(), image.height()),
-        LayerAttributes::default(),
-        Encoding::FAST_LOSSLESS,
-        AnyChannels::sort(list),
-    );
+    let layer =
+        Layer::new((image.width(), image.height()), LayerAttributes::default(), ENCODING, AnyChannels::sort(list));
     let file = ExrFile::from_layer(layer);
     write_atomically(path, |out| file.write().to_buffered(out).map_err(|e| std::io::Error::other(e.to_string())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An image of many tiles (compressed on several threads) with values that differ everywhere.
+    fn many_tiles() -> Image<f32> {
+        let (w, h) = (300, 200);
+        let data = (0..w * h * 3).map(|i| (i as f32 * 0.618).sin() * 10.0).collect();
+        Image::from_vec(w, h, 3, data).unwrap()
+    }
+
+    #[test]
+    fn the_same_pixels_give_the_same_bytes_and_read_back_exactly() {
+        let dir = tempfile::tempdir().unwrap();
+        let image = many_tiles();
+        let names = ["N.X", "N.Y", "N.Z"];
+        let first = dir.path().join("first.exr");
+        write_exr(&first, &image, &names).unwrap();
+        let meta = exr::meta::MetaData::read_from_file(&first, false).unwrap();
+        assert_eq!(meta.headers[0].line_order, LineOrder::Increasing);
+        let bytes = std::fs::read(&first).unwrap();
+        for again in 0..8 {
+            let path = dir.path().join(format!("again{again}.exr"));
+            write_exr(&path, &image, &names).unwrap();
+            assert!(std::fs::read(&path).unwrap() == bytes, "write {again} gave other bytes");
+        }
+        let back = read_exr(&first, &names).unwrap();
+        assert_eq!((back.width(), back.height(), back.channels()), (300, 200, 3));
+        assert!(back.data().iter().zip(image.data()).all(|(a, b)| a.to_bits() == b.to_bits()));
+    }
 }
