@@ -357,6 +357,7 @@ pub fn mask_picture(s0: &Image<f32>, mask: &Image<u8>) -> Image<u8> {
 /// another folder), with the report and the contact sheet.
 pub fn make_masks(dir: &Path, options: &MaskOptions, output: &Path) -> Result<MaskReport> {
     let manifest = SessionManifest::read(dir)?;
+    manifest.require_views(dir)?;
     let need = |what: &Option<PathBuf>, name: &str| -> Result<PathBuf> {
         what.clone().ok_or_else(|| Error::MaskInput(format!("the {name} mask method needs its input")))
     };

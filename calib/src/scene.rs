@@ -17,6 +17,7 @@ use std::path::Path;
 /// views, the others evaluation views. The normalisation encloses the visual hull.
 pub fn posed_scene(dir: &Path, poses: &PoseSet, masks: Option<&Path>, train: &[String]) -> Result<Scene> {
     let manifest = SessionManifest::read(dir)?;
+    manifest.require_views(dir)?;
     let masks = masks.map_or_else(|| dir.join(MASKS_FOLDER), Path::to_path_buf);
     let missing: Vec<&String> = train.iter().filter(|t| poses.camera(t).is_none()).collect();
     if !missing.is_empty() {

@@ -224,7 +224,7 @@ impl RawFrame {
             }
             return Ok(Self { layout: format.family.layout(), bits, pixels });
         }
-        let bytes = std::fs::read(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+        let bytes = rmvp_dataset::io::input::read_bytes(path)?;
         Self::decode(&bytes, format, width, height, &path.display().to_string())
     }
 

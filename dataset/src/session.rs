@@ -11,6 +11,7 @@
 //! views/NNN/view_{aop,dop}.{exr,png}, view_s0.png   AoP, DoP and a preview
 //! ```
 
+use crate::io::input;
 use crate::io::json::{read_json, write_json};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -255,7 +256,34 @@ impl SessionManifest {
         if !READABLE_FORMATS.contains(&manifest.format.as_str()) {
             return Err(Error::format(&path, format!("format {:?}, expected {SESSION_FORMAT:?}", manifest.format)));
         }
+        manifest.check_names().map_err(|why| Error::format(&path, why))?;
         Ok(manifest)
+    }
+
+    /// Refuse a session without a complete view: there is nothing to pose, mask or build.
+    pub fn require_views(&self, dir: &Path) -> Result<()> {
+        if self.views.is_empty() {
+            return Err(Error::format(dir.join(SESSION_FILE), "lists no complete view (capture views first)"));
+        }
+        Ok(())
+    }
+
+    /// Every view name is one file name, no two alike, and every file record a path inside the
+    /// session (the rule of [`crate::io::input`]): names and paths from the manifest become
+    /// paths on disk.
+    fn check_names(&self) -> std::result::Result<(), String> {
+        let mut names = std::collections::BTreeSet::new();
+        for view in &self.views {
+            input::file_name(&view.name).map_err(|why| format!("view {}: {why}", view.index))?;
+            if !names.insert(view.name.as_str()) {
+                return Err(format!("two views are named {:?}", view.name));
+            }
+        }
+        let files = self.dark.iter().map(|d| &d.file).chain(self.views.iter().flat_map(|v| &v.files));
+        for file in files {
+            input::check_relative(&file.path)?;
+        }
+        Ok(())
     }
 
     /// Write `DIR/session.json` atomically, in the current format, stamping `updated`.
@@ -284,7 +312,8 @@ impl SessionManifest {
 impl FileRecord {
     /// Size and SHA-256 of `DIR/relative`.
     pub fn of(dir: &Path, relative: &str) -> Result<Self> {
-        let (sha256, bytes) = sha256_file(&dir.join(relative))?;
+        let path = input::inside(dir, relative).map_err(|why| Error::format(dir.join(SESSION_FILE), why))?;
+        let (sha256, bytes) = sha256_file(&path)?;
         Ok(Self { path: relative.to_string(), bytes, sha256 })
     }
 }
@@ -297,7 +326,7 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 /// SHA-256 (hexadecimal) and size of the file at `path`, read in 1 MiB pieces.
 pub fn sha256_file(path: &Path) -> Result<(String, u64)> {
     use std::io::Read;
-    let mut file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut file = crate::io::input::open_regular(path)?;
     let (mut hasher, mut buffer, mut size) = (Sha256::new(), vec![0u8; 1 << 20], 0u64);
     loop {
         let n = file.read(&mut buffer).map_err(|e| Error::io(path, e))?;
@@ -314,30 +343,7 @@ fn hex(digest: &[u8]) -> String {
     digest.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// Every file under `dir`, as `/`-separated paths relative to it, in path order (component by
-/// component, as `Path` compares).
-pub fn files_under(dir: &Path) -> Result<Vec<String>> {
-    let mut files = Vec::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for entry in std::fs::read_dir(&d).map_err(|e| Error::io(&d, e))? {
-            let path = entry.map_err(|e| Error::io(&d, e))?.path();
-            if path.is_dir() {
-                stack.push(path);
-            } else {
-                files.push(path);
-            }
-        }
-    }
-    files.sort();
-    Ok(files
-        .iter()
-        .map(|p| {
-            let relative = p.strip_prefix(dir).expect("under dir");
-            relative.components().map(|c| c.as_os_str().to_string_lossy()).collect::<Vec<_>>().join("/")
-        })
-        .collect())
-}
+pub use crate::io::input::files_under;
 
 /// The current time, UTC, RFC 3339 with seconds.
 pub fn utc_now() -> String {

@@ -346,7 +346,14 @@ pub struct BuildRecord {
 impl BuildRecord {
     /// Read `DATASET/build.json`.
     pub fn read(dataset: &Path) -> Result<Self> {
-        Ok(read_json(&dataset.join(BUILD_FILE), "a dataset build record")?)
+        let path = dataset.join(BUILD_FILE);
+        let record: Self = read_json(&path, "a dataset build record")?;
+        // View names become file names in exports and contact sheets.
+        for name in record.views.iter().chain(&record.train) {
+            rmvp_dataset::io::input::file_name(name)
+                .map_err(|why| rmvp_dataset::Error::format(&path, format!("view {why}")))?;
+        }
+        Ok(record)
     }
 
     fn write(&self, dataset: &Path) -> Result<()> {
@@ -457,6 +464,7 @@ pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
     // 1. Views.
     let clock = Instant::now();
     let manifest = SessionManifest::read(session)?;
+    manifest.require_views(session)?;
     let poses = PoseSet::read(&poses_file)?;
     let cameras: Vec<(String, Camera)> =
         poses.views.iter().filter_map(|v| Some((v.name.clone(), Camera::try_from(&v.camera).ok()?))).collect();

@@ -11,7 +11,7 @@
 
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Rotation3, Vector3};
-use rmvp_dataset::io::{png, read_linear};
+use rmvp_dataset::io::{input, png, read_linear};
 use rmvp_dataset::visualize::srgb_to_linear;
 use rmvp_dataset::Image;
 use rmvp_render::EnvMap;
@@ -30,17 +30,23 @@ pub fn read_panorama(path: &Path) -> Result<Image<f32>> {
             png::PngImage::U16(i) => i.map(|v| v as f32 / 65535.0),
         },
         "hdr" => {
-            let bytes = std::fs::read(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+            let bytes = input::read_bytes(path)?;
             let mut decoder = zune_hdr::HdrDecoder::new(&bytes);
+            decoder.decode_headers().map_err(|e| bad(format!("not a readable Radiance HDR file: {e:?}")))?;
+            let (w, h) = decoder.get_dimensions().ok_or_else(|| bad("no image size in the header".into()))?;
+            input::check_pixels(path, w as u64, h as u64)?;
             let data = decoder.decode().map_err(|e| bad(format!("not a readable Radiance HDR file: {e:?}")))?;
             let (w, h) = decoder.get_dimensions().ok_or_else(|| bad("no image size in the header".into()))?;
             Image::from_vec(w, h, 3, data).map_err(|e| bad(e.to_string()))?
         }
         "jpg" | "jpeg" => {
-            let bytes = std::fs::read(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+            let bytes = input::read_bytes(path)?;
             let options = zune_jpeg::zune_core::options::DecoderOptions::default()
                 .jpeg_set_out_colorspace(zune_jpeg::zune_core::colorspace::ColorSpace::RGB);
             let mut decoder = zune_jpeg::JpegDecoder::new_with_options(&bytes, options);
+            decoder.decode_headers().map_err(|e| bad(format!("not a readable JPEG file: {e:?}")))?;
+            let (w, h) = decoder.dimensions().ok_or_else(|| bad("no image size".into()))?;
+            input::check_pixels(path, w as u64, h as u64)?;
             let data = decoder.decode().map_err(|e| bad(format!("not a readable JPEG file: {e:?}")))?;
             let (w, h) = decoder.dimensions().ok_or_else(|| bad("no image size".into()))?;
             Image::from_vec(w, h, 3, data.iter().map(|&v| srgb_to_linear(v as f32 / 255.0)).collect())

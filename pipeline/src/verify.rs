@@ -15,7 +15,7 @@ use crate::ground_truth::mask_iou;
 use crate::publish::CHECKSUMS;
 use crate::{Error, Result};
 use nalgebra::Point3;
-use rmvp_dataset::io::{npy, png};
+use rmvp_dataset::io::{input, npy, png};
 use rmvp_dataset::layout::{nersp, read_scene, Layout};
 use rmvp_dataset::session::{files_under, sha256_file};
 use rmvp_dataset::{Image, Scene};
@@ -47,24 +47,34 @@ pub fn verify(release: &Path) -> Result<Verification> {
     let mut faults = Vec::new();
     let mut report = Verification::default();
     let sums_path = release.join(CHECKSUMS);
-    let listed = match std::fs::read_to_string(&sums_path) {
+    let listed = match input::read_text(&sums_path) {
         Ok(text) => text,
-        Err(e) => {
-            return Err(Error::Verification { path: release.to_path_buf(), faults: vec![format!("{CHECKSUMS}: {e}")] })
-        }
+        Err(e) => return Err(Error::Verification { path: release.to_path_buf(), faults: vec![e.to_string()] }),
     };
     let mut names = BTreeSet::new();
     for (number, line) in listed.lines().enumerate() {
-        let Some((hash, file)) = line.split_once("  ") else {
-            faults.push(format!("{CHECKSUMS} line {}: not `<sha256>  <file>`", number + 1));
+        let line_no = number + 1;
+        let Some((hash, file)) = line.split_once("  ").filter(|(h, _)| h.len() == 64 && h.bytes().all(|b| b.is_ascii_hexdigit()))
+        else {
+            faults.push(format!("{CHECKSUMS} line {line_no}: not `<sha256>  <file>`"));
             continue;
         };
+        // A listed name is a path inside the release, nothing else: it is never opened otherwise.
+        let path = match input::inside(release, file) {
+            Ok(path) => path,
+            Err(why) => {
+                faults.push(format!("{CHECKSUMS} line {line_no}: {why}"));
+                continue;
+            }
+        };
         names.insert(file.to_string());
-        let path = release.join(file);
         match sha256_file(&path) {
             Ok((actual, _)) if actual == hash => report.files += 1,
             Ok(_) => faults.push(format!("{file}: checksum differs from {CHECKSUMS} (changed or damaged)")),
-            Err(_) => faults.push(format!("{file}: listed in {CHECKSUMS} but missing")),
+            Err(rmvp_dataset::Error::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
+                faults.push(format!("{file}: listed in {CHECKSUMS} but missing"))
+            }
+            Err(e) => faults.push(format!("{file}: {}", fault_of(&e, &path))),
         }
     }
     for file in files_under(release)? {
@@ -91,6 +101,13 @@ pub fn verify(release: &Path) -> Result<Verification> {
     } else {
         Err(Error::Verification { path: release.to_path_buf(), faults })
     }
+}
+
+/// What an error says of a file, without the file's path (the fault lists name it relative to
+/// the release).
+fn fault_of(e: &rmvp_dataset::Error, path: &Path) -> String {
+    let text = e.to_string();
+    text.strip_prefix(&format!("{}: ", path.display())).map_or(text.clone(), str::to_string)
 }
 
 /// Check one object folder; returns the views checked.
@@ -120,7 +137,7 @@ fn check_object(dir: &Path, object: &str, faults: &mut Vec<String>) -> usize {
 
 /// The official loader's rules on the NeRSP layout's files.
 fn check_nersp_files(dir: &Path, at: &str, train: usize, faults: &mut Vec<String>) {
-    let cameras = match npy::read_npz::<f64>(&dir.join(nersp::CAMERAS)) {
+    let cameras = match npy::read_npz_limited::<f64>(&dir.join(nersp::CAMERAS), nersp::CAMERA_ARRAY_ELEMENTS) {
         Ok(c) => c,
         Err(e) => {
             faults.push(format!("{at}/{}: {e}", nersp::CAMERAS));

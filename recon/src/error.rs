@@ -18,6 +18,9 @@ pub enum Error {
     /// A file or data-model error (names the file).
     #[error(transparent)]
     Dataset(#[from] rmvp_dataset::Error),
+    /// An option no training can run with (zero iterations, say).
+    #[error("{0}")]
+    InvalidOption(String),
     /// Both the photometric and the geometric cue switched off.
     #[error("both cues are switched off: nothing to train")]
     BothCuesOff,

@@ -80,6 +80,26 @@ impl Default for Options {
 }
 
 impl Options {
+    /// Refuse options no training can run with, in words about their values: both cues off,
+    /// zero iterations, an empty marching grid, zero rays per step.
+    pub fn validate(&self) -> Result<()> {
+        if !self.photometric && !self.geometric {
+            return Err(Error::BothCuesOff);
+        }
+        let fault = if self.iterations == Some(0) {
+            "the number of iterations must be at least 1"
+        } else if self.mesh_resolution == 0 {
+            "the mesh resolution (marching grid cells per axis) must be at least 1"
+        } else if self.batch_rays == Some(0) {
+            "the rays per iteration (batch) must be at least 1"
+        } else if self.checkpoint_every == 0 {
+            "the iterations between checkpoints must be at least 1"
+        } else {
+            return Ok(());
+        };
+        Err(Error::InvalidOption(fault.into()))
+    }
+
     /// The training configuration these options give.
     pub fn config(&self) -> TrainConfig {
         let iterations = self.iterations.unwrap_or(self.preset.default_iterations());
@@ -123,9 +143,7 @@ pub fn reconstruct(
     options: &Options,
     mut on_step: impl FnMut(&StepReport, &Trainer) -> ControlFlow<()>,
 ) -> Result<Trainer> {
-    if !options.photometric && !options.geometric {
-        return Err(Error::BothCuesOff);
-    }
+    options.validate()?;
     // A mesh device that cannot run is said before training, not after it.
     check_device(options.mesh_device)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
@@ -143,7 +161,7 @@ pub fn reconstruct(
         Trainer::new(config, set)
     };
     // The log keeps exactly the iterations the checkpoint has seen.
-    let kept: String = match std::fs::read_to_string(&log_path) {
+    let kept: String = match rmvp_dataset::io::input::read_text(&log_path) {
         Ok(text) if trainer.iteration > 0 => {
             text.lines().take(trainer.iteration as usize).map(|l| format!("{l}\n")).collect()
         }

@@ -421,14 +421,14 @@ impl Trainer {
     /// Restore a run from a checkpoint written by [`Trainer::save_checkpoint`]; the training
     /// set must be the one it was trained on.
     pub fn load_checkpoint(path: &Path, set: TrainingSet) -> Result<Self> {
-        let bytes = std::fs::read(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+        let bytes = rmvp_dataset::io::input::read_bytes(path)?;
         let bad = |m: &str| Error::BadCheckpoint { path: path.to_path_buf(), problem: m.to_string() };
         if bytes.len() < 16 || &bytes[..8] != CHECKPOINT_MAGIC {
             return Err(bad("not an rmvp checkpoint"));
         }
         let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
         let header: CheckpointHeader =
-            serde_json::from_slice(bytes.get(16..16 + len).ok_or_else(|| bad("truncated header"))?)
+            serde_json::from_slice(bytes.get(16..16usize.saturating_add(len)).ok_or_else(|| bad("truncated header"))?)
                 .map_err(|e| bad(&format!("header: {e}")))?;
         if header.format != CHECKPOINT_FORMAT {
             return Err(bad(&format!("format {}, this version reads {CHECKPOINT_FORMAT}", header.format)));

@@ -148,7 +148,7 @@ struct PoseRecord {
 /// (world to camera) or `{"eye": [..], "target": [..]}` (+Y up), each optionally with its own
 /// intrinsics `"k": [[..]]` (else `k`).
 pub fn read_poses(path: &Path, k: Matrix3<f64>, width: u32, height: u32) -> Result<Vec<Camera>> {
-    let text = std::fs::read_to_string(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+    let text = rmvp_dataset::io::input::read_text(path)?;
     let poses: Vec<PoseRecord> =
         serde_json::from_str(&text).map_err(|e| rmvp_dataset::Error::format(path, format!("bad pose list: {e}")))?;
     poses

@@ -71,6 +71,7 @@ pub fn charuco_poses(
     options: &CharucoOptions,
 ) -> Result<PoseSet> {
     let manifest = SessionManifest::read(dir)?;
+    manifest.require_views(dir)?;
     let pictures: Vec<_> = manifest
         .views
         .par_iter()

@@ -102,6 +102,7 @@ pub fn colmap_poses(
     options: &ColmapOptions,
 ) -> Result<PoseSet> {
     let manifest = SessionManifest::read(dir)?;
+    manifest.require_views(dir)?;
     let (images, masks, sparse) = (workspace.join("images"), workspace.join("masks"), workspace.join("sparse"));
     if workspace.exists() {
         std::fs::remove_dir_all(workspace).map_err(|e| rmvp_dataset::Error::io(workspace, e))?;

@@ -22,6 +22,7 @@ fn stem(name: &str) -> String {
 /// Pose the session in `dir` with the cameras in `source`; at least `min_views` must be posed.
 pub fn import_poses(dir: &Path, source: &Path, min_views: usize) -> Result<PoseSet> {
     let manifest = SessionManifest::read(dir)?;
+    manifest.require_views(dir)?;
     let names: Vec<String> = manifest.views.iter().map(|v| v.name.clone()).collect();
     let extension = source.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     // Named cameras, each with its residual and point count (where the source has points).

@@ -19,6 +19,7 @@ pub fn turntable_poses(dir: &Path, rig: &Path, min_views: usize) -> Result<PoseS
         .filter_map(|v| Some((v.turntable_position?, rig_poses.views.iter().find(|p| p.name == v.name)?)))
         .collect();
     let manifest = SessionManifest::read(dir)?;
+    manifest.require_views(dir)?;
     let (mut views, mut failed) = (Vec::new(), Vec::new());
     for view in &manifest.views {
         let reject = |reason: String| Rejected { name: view.name.clone(), reason };

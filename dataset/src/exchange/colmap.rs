@@ -229,7 +229,7 @@ struct Bytes<'a> {
 
 impl<'a> Bytes<'a> {
     fn open(path: &'a Path) -> Result<Self> {
-        Ok(Self { path, data: std::fs::read(path).map_err(|e| Error::io(path, e))?, at: 0 })
+        Ok(Self { path, data: crate::io::input::read_bytes(path)?, at: 0 })
     }
 
     fn take<const N: usize>(&mut self) -> Result<[u8; N]> {
@@ -331,7 +331,7 @@ fn read_points_bin(path: &Path) -> Result<BTreeMap<u64, [f64; 3]>> {
 
 /// The non-comment lines of a text model file, numbered from 1.
 fn lines(path: &Path) -> Result<Vec<(usize, String)>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_text(path)?;
     Ok(text.lines().enumerate().filter(|(_, l)| !l.starts_with('#')).map(|(i, l)| (i + 1, l.to_string())).collect())
 }
 

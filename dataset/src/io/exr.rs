@@ -1,11 +1,14 @@
 //! OpenEXR images with named channels (the `exr` crate), read and written as 32-bit floats.
 
 use super::atomic::write_atomically;
+use super::input;
 use crate::{Error, Image, Result};
 use exr::prelude::{
     read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrFile, Layer, LayerAttributes, LineOrder,
     ReadChannels, ReadLayers, WritableImage,
 };
+use exr::meta::MetaData;
+use std::io::{BufReader, Seek, SeekFrom};
 use std::path::Path;
 
 /// Every channel of an EXR layer as `(name, samples)`, with the layer's width and height.
@@ -13,15 +16,39 @@ pub type ExrChannels = (usize, usize, Vec<(String, Vec<f32>)>);
 
 /// Read the first layer of an EXR file: its size and every channel as `(name, samples)`, in the
 /// file's (alphabetical) channel order. Half and integer samples are converted to `f32`.
+///
+/// Every layer's declared size is checked against [`input::max_pixels`] and against the file's
+/// size before any pixel is allocated.
 pub fn read_exr_channels(path: &Path) -> Result<ExrChannels> {
+    let mut file = BufReader::new(input::open_regular(path)?);
+    let file_bytes = file.get_ref().metadata().map_err(|e| Error::io(path, e))?.len();
+    let bad = |e: exr::error::Error| Error::format(path, format!("not a readable OpenEXR file: {e}"));
+    let meta = MetaData::read_from_buffered(&mut file, false).map_err(bad)?;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        input::check_pixels(path, size.width() as u64, size.height() as u64)?;
+        // Every chunk of the layer needs at least its 8-byte offset in the file.
+        if header.chunk_count as u64 > file_bytes / 8 {
+            return Err(Error::format(
+                path,
+                format!(
+                    "declares a {}x{} layer of {} chunks, more than its {file_bytes} bytes can hold (truncated or forged)",
+                    size.width(),
+                    size.height(),
+                    header.chunk_count
+                ),
+            ));
+        }
+    }
+    file.seek(SeekFrom::Start(0)).map_err(|e| Error::io(path, e))?;
     let file = read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .first_valid_layer()
         .all_attributes()
-        .from_file(path)
-        .map_err(|e| Error::format(path, format!("not a readable OpenEXR file: {e}")))?;
+        .from_buffered(file)
+        .map_err(bad)?;
     let layer = file.layer_data;
     let channels = layer
         .channel_data

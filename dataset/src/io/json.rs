@@ -10,7 +10,7 @@ use std::path::Path;
 /// Read `path` as a `T`; an unreadable or malformed file is an error naming it and `what` it
 /// should be ("a session manifest").
 pub fn read_json<T: DeserializeOwned>(path: &Path, what: &str) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_text(path)?;
     serde_json::from_str(&text).map_err(|e| Error::format(path, format!("not {what}: {e}")))
 }
 

@@ -1,10 +1,12 @@
 //! File formats, each through a well-kept crate, with errors that name the file.
 //!
-//! Every writer here writes atomically (see [`atomic`]): a reader never sees half a file, and an
+//! Every reader follows the rules of [`input`] (regular files only, paths inside their root,
+//! declared sizes checked before allocating). Every writer here writes atomically (see [`atomic`]): a reader never sees half a file, and an
 //! interrupted or failed write (a full disk, say) leaves any previous version intact.
 
 pub mod atomic;
 pub mod exr;
+pub mod input;
 pub mod json;
 pub mod npy;
 pub mod png;

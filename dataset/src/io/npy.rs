@@ -1,6 +1,7 @@
 //! NumPy `.npy` arrays and `.npz` archives of them (`npyz` and `zip`).
 
 use super::atomic::write_atomically;
+use super::input;
 use crate::{Error, Result};
 use npyz::{NpyFile, WriterBuilder};
 use std::io::{BufReader, Read, Seek, Write};
@@ -33,22 +34,41 @@ impl Element for f64 {
     }
 }
 
-fn read_array<T: Element, R: Read>(reader: R, path: &Path) -> Result<Array<T>> {
+/// Read one array of at most `max_elements` from `reader`, which holds `available` bytes: the
+/// shape its header declares is checked against both before the elements are allocated.
+fn read_array<T: Element, R: Read>(reader: R, path: &Path, available: u64, max_elements: u64) -> Result<Array<T>> {
     let npy = NpyFile::new(reader).map_err(|e| Error::format(path, format!("bad NPY header: {e}")))?;
     if npy.order() != npyz::Order::C {
         return Err(Error::format(path, "Fortran-ordered arrays are not supported"));
     }
     let shape: Vec<usize> = npy.shape().iter().map(|&n| n as usize).collect();
-    let expected: usize = shape.iter().product();
     let descr = npy.dtype().descr().trim_matches('\'').to_string();
+    let element_bytes = match descr.as_str() {
+        "<f4" | ">f4" => 4,
+        "<f8" | ">f8" => 8,
+        other => return Err(Error::format(path, format!("expected a float array, found dtype {other}"))),
+    };
+    let elements = npy.shape().iter().try_fold(1u64, |n, &d| n.checked_mul(d)).unwrap_or(u64::MAX);
+    if elements > max_elements {
+        return Err(Error::format(
+            path,
+            format!("array of shape {shape:?} has more than the {max_elements} elements such a file may hold"),
+        ));
+    }
+    if elements.saturating_mul(element_bytes) > available {
+        return Err(Error::format(
+            path,
+            format!("shape {shape:?} needs {} bytes, the file holds {available} (truncated or forged)", elements * element_bytes),
+        ));
+    }
+    let expected = elements as usize;
     let truncated =
         |e: std::io::Error| Error::format(path, format!("cannot read {expected} elements of shape {shape:?}: {e}"));
     let data: Vec<T> = match descr.as_str() {
         "<f4" | ">f4" if std::mem::size_of::<T>() == 4 => npy.into_vec::<T>().map_err(truncated)?,
         "<f8" | ">f8" if std::mem::size_of::<T>() == 8 => npy.into_vec::<T>().map_err(truncated)?,
         "<f4" | ">f4" => npy.into_vec::<f32>().map_err(truncated)?.into_iter().map(|v| T::from_f64(v as f64)).collect(),
-        "<f8" | ">f8" => npy.into_vec::<f64>().map_err(truncated)?.into_iter().map(T::from_f64).collect(),
-        other => return Err(Error::format(path, format!("expected a float array, found dtype {other}"))),
+        _ => npy.into_vec::<f64>().map_err(truncated)?.into_iter().map(T::from_f64).collect(),
     };
     if data.len() != expected {
         return Err(Error::format(path, format!("shape {shape:?} needs {expected} elements, file has {}", data.len())));
@@ -58,8 +78,9 @@ fn read_array<T: Element, R: Read>(reader: R, path: &Path) -> Result<Array<T>> {
 
 /// Read a float `.npy` file (`f4` or `f8`, converted to `T`).
 pub fn read_npy<T: Element>(path: &Path) -> Result<Array<T>> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    read_array(BufReader::new(file), path)
+    let file = input::open_regular(path)?;
+    let bytes = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    read_array(BufReader::new(file), path, bytes, u64::MAX)
 }
 
 fn write_array<T: Element, W: Write>(out: W, array: &Array<T>) -> std::io::Result<()> {
@@ -83,13 +104,24 @@ pub fn write_npy<T: Element>(path: &Path, array: &Array<T>) -> Result<()> {
     write_atomically(path, |out| write_array(out, array))
 }
 
-/// Read every array of an `.npz` archive, in archive order, as `(name, array)`.
+/// Read every array of an `.npz` archive, in archive order, as `(name, array)`; each array
+/// holds at most four samples per pixel of the largest image ([`input::max_pixels`]).
 pub fn read_npz<T: Element>(path: &Path) -> Result<Vec<(String, Array<T>)>> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    read_npz_from(BufReader::new(file), path)
+    read_npz_limited(path, input::max_pixels().saturating_mul(4))
 }
 
-fn read_npz_from<T: Element, R: Read + Seek>(reader: R, path: &Path) -> Result<Vec<(String, Array<T>)>> {
+/// [`read_npz`] of an archive whose arrays hold at most `max_elements` each (a camera file's
+/// 4x4 matrices, say): a larger one is refused from its header, before it is inflated.
+pub fn read_npz_limited<T: Element>(path: &Path, max_elements: u64) -> Result<Vec<(String, Array<T>)>> {
+    let file = input::open_regular(path)?;
+    read_npz_from(BufReader::new(file), path, max_elements)
+}
+
+fn read_npz_from<T: Element, R: Read + Seek>(
+    reader: R,
+    path: &Path,
+    max_elements: u64,
+) -> Result<Vec<(String, Array<T>)>> {
     let mut zip =
         zip::ZipArchive::new(reader).map_err(|e| Error::format(path, format!("not a readable NPZ archive: {e}")))?;
     let mut arrays = Vec::new();
@@ -99,7 +131,9 @@ fn read_npz_from<T: Element, R: Read + Seek>(reader: R, path: &Path) -> Result<V
         let Some(name) = npyz::npz::array_name_from_file_name(&entry_name).map(str::to_owned) else {
             continue;
         };
-        let array = read_array(entry, path).map_err(|e| match e {
+        // The entry's declared size bounds what is inflated; the array must fit in it.
+        let available = entry.size();
+        let array = read_array(entry, path, available, max_elements).map_err(|e| match e {
             Error::Format { message, .. } => Error::format(path, format!("array {name}: {message}")),
             other => other,
         })?;

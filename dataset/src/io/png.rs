@@ -1,6 +1,7 @@
 //! PNG images, 8 and 16 bits per sample, 1 to 4 channels (the `png` crate).
 
 use super::atomic::write_atomically;
+use super::input;
 use crate::{Error, Image, Result};
 use png::{BitDepth, ColorType, Transformations};
 use std::io::BufReader;
@@ -16,13 +17,27 @@ pub enum PngImage {
 }
 
 /// Read any PNG; palettes and depths below 8 bits are expanded to 8-bit samples.
+///
+/// The size the header declares is checked against [`input::max_pixels`] and against what the
+/// file's compressed bytes can hold before the image is allocated.
 pub fn read_png(path: &Path) -> Result<PngImage> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = input::open_regular(path)?;
+    let file_bytes = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut decoder = png::Decoder::new(BufReader::new(file));
     decoder.set_transformations(Transformations::EXPAND);
     let bad = |e: png::DecodingError| Error::format(path, format!("not a readable PNG: {e}"));
     let mut reader = decoder.read_info().map_err(bad)?;
+    let (width, height) = (reader.info().width as u64, reader.info().height as u64);
+    input::check_pixels(path, width, height)?;
     let size = reader.output_buffer_size().ok_or_else(|| Error::format(path, "PNG too large"))?;
+    // Deflate expands at most 1032:1; each row adds one filter byte before compression.
+    let raw = reader.info().raw_bytes() as u64 + height;
+    if raw > file_bytes.saturating_mul(MAX_DEFLATE_RATIO) {
+        return Err(Error::format(
+            path,
+            format!("declares a {width}x{height} image, more than its {file_bytes} bytes can hold (truncated or forged)"),
+        ));
+    }
     let mut buf = vec![0u8; size];
     let info = reader.next_frame(&mut buf).map_err(bad)?;
     buf.truncate(info.buffer_size());
@@ -37,6 +52,9 @@ pub fn read_png(path: &Path) -> Result<PngImage> {
     };
     Ok(image)
 }
+
+/// The most a deflate stream expands (RFC 1951: 258 bytes from a 2-bit code at best; 1032:1).
+const MAX_DEFLATE_RATIO: u64 = 1032;
 
 /// Read an 8-bit PNG; a 16-bit one is an error.
 pub fn read_png_u8(path: &Path) -> Result<Image<u8>> {
@@ -127,7 +145,7 @@ pub fn write_png_u8_for_print(path: &Path, image: &Image<u8>, dpi: f64) -> Resul
 
 /// The print resolution a PNG states (dots per inch), if it states one in metres.
 pub fn read_png_dpi(path: &Path) -> Result<Option<f64>> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = input::open_regular(path)?;
     let reader = png::Decoder::new(BufReader::new(file))
         .read_info()
         .map_err(|e| Error::format(path, format!("not a readable PNG: {e}")))?;

@@ -79,6 +79,9 @@ pub(crate) fn image_from_array(path: &Path, a: crate::io::npy::Array<f32>) -> Re
         [h, w, c] => (h, w, c),
         _ => return Err(Error::format(path, format!("expected an HxW or HxWxC image, shape is {:?}", a.shape))),
     };
+    if h == 0 || w == 0 || c == 0 {
+        return Err(Error::format(path, format!("empty image: shape {:?}", a.shape)));
+    }
     crate::Image::from_vec(w, h, c, a.data).map_err(|e| e.in_file(path))
 }
 

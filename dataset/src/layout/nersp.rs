@@ -17,7 +17,7 @@
 
 use super::{array_from_image, image_from_array};
 use crate::camera::{matrix_from_rows, matrix_rows};
-use crate::io::{exr, npy, png, write_bytes_atomically};
+use crate::io::{exr, input, npy, png, write_bytes_atomically};
 use crate::polarization::{aop_from_u16, aop_to_u16, POLARIZER_ANGLES_DEG};
 use crate::{visualize, Camera, Error, Image, Mesh, PolarizerImages, Result, Scene, Split, Stokes, View};
 use nalgebra::{Matrix3x4, Matrix4, Vector3};
@@ -27,6 +27,8 @@ use std::path::Path;
 
 /// The index file of this layout.
 pub const CAMERAS: &str = "cameras.npz";
+/// The most elements an array of [`CAMERAS`] may have (its matrices are 4x4).
+pub const CAMERA_ARRAY_ELEMENTS: u64 = 1024;
 /// The ground-truth mesh (world frame).
 pub const GT_MESH: &str = "gt/mesh.ply";
 const GT_CAMERAS: &str = "gt/cameras.json";
@@ -96,7 +98,7 @@ pub fn read(dir: &Path) -> Result<Scene> {
             .filter(|c| c.split == Split::Eval)
             .map(|c| View::new(c.name.clone(), Split::Eval, c.camera())),
     );
-    views.par_iter_mut().try_for_each(|view| read_ground_truth_images(dir, view))?;
+    views.par_iter_mut().enumerate().try_for_each(|(i, view)| read_ground_truth_images(dir, i, view))?;
 
     let mesh_path = dir.join(GT_MESH);
     let mesh = mesh_path.is_file().then(|| Mesh::read(&mesh_path)).transpose()?;
@@ -108,7 +110,7 @@ pub fn read(dir: &Path) -> Result<Scene> {
 /// The `world_mat_i` (`K [R | t]`, 4x4) of an IDR/NeRSP `cameras.npz`, in order, and the one
 /// `scale_mat` they share (identity when absent).
 pub fn read_cameras(path: &Path) -> Result<(Vec<Matrix4<f64>>, Matrix4<f64>)> {
-    let arrays = npy::read_npz::<f64>(path)?;
+    let arrays = npy::read_npz_limited::<f64>(path, CAMERA_ARRAY_ELEMENTS)?;
     let lookup = |name: &str| arrays.iter().find(|(n, _)| n == name).map(|(_, a)| a);
     let count = (0..).take_while(|i| lookup(&format!("world_mat_{i}")).is_some()).count();
     if count == 0 {
@@ -139,12 +141,16 @@ pub fn read_cameras(path: &Path) -> Result<(Vec<Matrix4<f64>>, Matrix4<f64>)> {
 }
 
 fn read_gt_cameras(path: &Path) -> Result<(Vec<GtCamera>, serde_json::Map<String, serde_json::Value>)> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::io::input::read_text(path)?;
     let mut json: serde_json::Map<String, serde_json::Value> =
         serde_json::from_str(&text).map_err(|e| Error::format(path, format!("bad JSON: {e}")))?;
     let cameras = json.remove("cameras").ok_or_else(|| Error::format(path, "no \"cameras\" list"))?;
     let cameras: Vec<GtCamera> =
         serde_json::from_value(cameras).map_err(|e| Error::format(path, format!("bad camera entry: {e}")))?;
+    for camera in &cameras {
+        // Names become file names under gt/.
+        input::file_name(&camera.name).map_err(|why| Error::format(path, format!("camera {why}")))?;
+    }
     Ok((cameras, json))
 }
 
@@ -167,7 +173,8 @@ fn read_train_view(
             let camera = gt.camera();
             let composed = camera.projection();
             let deviation = (composed - p).abs().max() / p.abs().max();
-            if deviation > 1e-9 {
+            // Written so that a NaN or infinite world_mat is refused too.
+            if deviation.is_nan() || deviation > 1e-9 {
                 return Err(Error::format(
                     dir.join(GT_CAMERAS),
                     format!("camera {} disagrees with world_mat_{i} (relative {deviation:.1e})", gt.name),
@@ -213,13 +220,18 @@ fn read_azimuth_map(path: &Path) -> Result<Image<f32>> {
     Ok(map.channel(0).map(aop_from_u16))
 }
 
-fn read_ground_truth_images(dir: &Path, view: &mut View) -> Result<()> {
+/// The `gt/` images of a view; `index` is its position (a training view's file number).
+fn read_ground_truth_images(dir: &Path, index: usize, view: &mut View) -> Result<()> {
     let mask_path = dir.join("gt/mask").join(format!("{}.png", view.name));
     if mask_path.is_file() {
         let mask = read_mask(&mask_path)?;
         match &view.mask {
             Some(existing) if *existing != mask => {
-                return Err(Error::format(&mask_path, "differs from the training mask in mask/"));
+                let train_mask = train_file(dir, "mask", index, "png");
+                return Err(Error::format(
+                    &train_mask,
+                    format!("differs from the ground-truth mask {} (one of the two is damaged)", mask_path.display()),
+                ));
             }
             Some(_) => {}
             None => view.mask = Some(mask),

@@ -13,7 +13,7 @@
 //! ```
 
 use crate::camera::CameraRecord;
-use crate::io::{exr, png, write_bytes_atomically};
+use crate::io::{exr, input, png, write_bytes_atomically};
 use crate::polarization::POLARIZER_ANGLES_DEG;
 use crate::{Camera, Error, Image, Mesh, PolarizerImages, Result, Scene, Split, Stokes, View};
 use nalgebra::Matrix4;
@@ -115,7 +115,7 @@ fn from_rows4(r: &[[f64; 4]; 4]) -> Matrix4<f64> {
 /// Read a scene in our layout.
 pub fn read(dir: &Path) -> Result<Scene> {
     let path = dir.join(MANIFEST);
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::io(&path, e))?;
+    let text = input::read_text(&path)?;
     let manifest: SceneManifest =
         serde_json::from_str(&text).map_err(|e| Error::format(&path, format!("bad manifest: {e}")))?;
     if manifest.format != FORMAT {
@@ -127,46 +127,51 @@ pub fn read(dir: &Path) -> Result<Scene> {
             format!("version {} is newer than this program reads ({VERSION})", manifest.version),
         ));
     }
+    for record in &manifest.views {
+        input::file_name(&record.name).map_err(|why| Error::format(&path, format!("view {why}")))?;
+    }
+    let file = |relative: &String| input::inside(dir, relative).map_err(|why| Error::format(&path, why));
     let views = manifest
         .views
         .par_iter()
-        .map(|record| read_view(dir, record).map_err(|e| e.in_file(&path)))
+        .map(|record| read_view(record, &file).map_err(|e| e.in_file(&path)))
         .collect::<Result<_>>()?;
-    let mesh = manifest.mesh.as_ref().map(|f| Mesh::read(&dir.join(f))).transpose()?;
-    let env_map = manifest.env_map.as_ref().map(|f| exr::read_exr(&dir.join(f), &["R", "G", "B"])).transpose()?;
+    let mesh = manifest.mesh.as_ref().map(|f| Mesh::read(&file(f)?)).transpose()?;
+    let env_map = manifest.env_map.as_ref().map(|f| exr::read_exr(&file(f)?, &["R", "G", "B"])).transpose()?;
     Ok(Scene { views, normalization: from_rows4(&manifest.normalization), mesh, env_map, metadata: manifest.metadata })
 }
 
-fn read_view(dir: &Path, record: &SceneViewRecord) -> Result<View> {
+/// One view of the manifest; `file` resolves a path of the manifest inside the scene folder.
+fn read_view(record: &SceneViewRecord, file: &(impl Fn(&String) -> Result<std::path::PathBuf> + Sync)) -> Result<View> {
     let camera = Camera::try_from(&record.camera).map_err(|e| Error::invalid(format!("view {}: {e}", record.name)))?;
     let mut view = View::new(record.name.clone(), record.split, camera);
     view.projection = record.projection.as_ref().map(from_rows4);
     let f = &record.files;
-    if let Some(file) = &f.stokes {
-        view.stokes = Some(read_stokes(&dir.join(file))?);
+    if let Some(name) = &f.stokes {
+        view.stokes = Some(read_stokes(&file(name)?)?);
     }
-    if let Some(file) = &f.mask {
-        view.mask = Some(png::read_png_u8(&dir.join(file))?);
+    if let Some(name) = &f.mask {
+        view.mask = Some(png::read_png_u8(&file(name)?)?);
     }
-    if let Some(file) = &f.aop {
-        view.aop = Some(exr::read_exr(&dir.join(file), &["AoP"])?);
+    if let Some(name) = &f.aop {
+        view.aop = Some(exr::read_exr(&file(name)?, &["AoP"])?);
     }
-    if let Some(file) = &f.dop {
-        view.dop = Some(exr::read_exr(&dir.join(file), &["DoP"])?);
+    if let Some(name) = &f.dop {
+        view.dop = Some(exr::read_exr(&file(name)?, &["DoP"])?);
     }
-    if let Some(file) = &f.normal {
-        view.normals = Some(exr::read_exr(&dir.join(file), &["N.X", "N.Y", "N.Z"])?);
+    if let Some(name) = &f.normal {
+        view.normals = Some(exr::read_exr(&file(name)?, &["N.X", "N.Y", "N.Z"])?);
     }
-    if let Some(file) = &f.depth {
-        view.depth = Some(exr::read_exr(&dir.join(file), &["Z"])?);
+    if let Some(name) = &f.depth {
+        view.depth = Some(exr::read_exr(&file(name)?, &["Z"])?);
     }
     if let Some(files) = &f.polarizers {
-        let [a, b, c, d] = files.clone().map(|file| png::read_png_u16(&dir.join(file)));
+        let [a, b, c, d] = files.each_ref().map(|name| file(name).and_then(|p| png::read_png_u16(&p)));
         let scale = record.polarizer_scale.unwrap_or(1.0);
         view.polarized = Some(PolarizerImages { scale, images: [a?, b?, c?, d?] });
     }
-    if let Some(file) = &f.preview {
-        view.preview = Some(png::read_png_u8(&dir.join(file))?);
+    if let Some(name) = &f.preview {
+        view.preview = Some(png::read_png_u8(&file(name)?)?);
     }
     Ok(view)
 }

@@ -1,21 +1,20 @@
 //! Wavefront OBJ meshes: read with `tobj` (triangulated, one index per vertex), written as text.
 
 use super::{Mesh, ScalarKind, VertexProperty};
-use crate::io::write_atomically;
+use crate::io::{input, write_atomically};
 use crate::{Error, Result};
-use std::io::Write;
+use std::io::{BufReader, Write};
 use std::path::Path;
 
 /// Read an OBJ file; all its objects are merged into one mesh. Texture coordinates become the
-/// vertex properties `u` and `v`. Materials are ignored.
+/// vertex properties `u` and `v`. Materials are ignored: the `mtllib` files an OBJ names are
+/// never opened.
 pub fn read_obj(path: &Path) -> Result<Mesh> {
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
-    let (models, _materials) = tobj::load_obj(path, &options).map_err(|e| match e {
-        tobj::LoadError::OpenFileFailed => {
-            Error::io(path, std::io::Error::new(std::io::ErrorKind::NotFound, "cannot open"))
-        }
-        other => Error::format(path, format!("not a readable OBJ file: {other}")),
-    })?;
+    let mut reader = BufReader::new(input::open_regular(path)?);
+    let no_materials = |_: &Path| Ok((Vec::new(), Default::default()));
+    let (models, _materials) = tobj::load_obj_buf(&mut reader, &options, no_materials)
+        .map_err(|e| Error::format(path, format!("not a readable OBJ file: {e}")))?;
     let mut mesh = Mesh::default();
     let mut normals = Vec::new();
     let (mut u, mut v) = (Vec::new(), Vec::new());

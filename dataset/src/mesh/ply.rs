@@ -86,8 +86,55 @@ fn list_indices(p: &Property) -> Option<Vec<i64>> {
 /// Read a PLY file (ASCII or binary). Positions become `f32`; `nx ny nz` become normals;
 /// every other scalar vertex property is kept; polygons are split into triangle fans.
 pub fn read_ply(path: &Path) -> Result<Mesh> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::io::input::read_bytes(path)?;
     read_ply_bytes(&bytes, path)
+}
+
+/// Refuse a header whose element counts need more bytes than the file holds after it (at least
+/// each property's size in binary, two characters per property in ASCII), before anything is
+/// allocated for them.
+fn check_declared_counts(bytes: &[u8], path: &Path) -> Result<()> {
+    let Some(end) = bytes.windows(10).position(|w| w == b"end_header").map(|p| p + 10) else {
+        return Ok(()); // not a PLY header: the parser says so
+    };
+    let header = String::from_utf8_lossy(&bytes[..end]);
+    let ascii = header.lines().any(|l| l.split_whitespace().take(2).eq(["format", "ascii"]));
+    let binary_size = |t: &str| match t {
+        "char" | "int8" | "uchar" | "uint8" => 1,
+        "short" | "int16" | "ushort" | "uint16" => 2,
+        "double" | "float64" => 8,
+        _ => 4,
+    };
+    let mut elements: Vec<(String, u64, u64)> = Vec::new();
+    for line in header.lines() {
+        let words: Vec<&str> = line.split_whitespace().collect();
+        match words.as_slice() {
+            ["element", name, count] => elements.push((name.to_string(), count.parse().unwrap_or(u64::MAX), 0)),
+            ["property", "list", count_type, ..] => {
+                if let Some(e) = elements.last_mut() {
+                    e.2 += if ascii { 2 } else { binary_size(count_type) };
+                }
+            }
+            ["property", scalar, ..] => {
+                if let Some(e) = elements.last_mut() {
+                    e.2 += if ascii { 2 } else { binary_size(scalar) };
+                }
+            }
+            _ => {}
+        }
+    }
+    let payload = (bytes.len() - end) as u64;
+    let mut needed = 0u64;
+    for (name, count, least) in &elements {
+        needed = needed.saturating_add(count.saturating_mul((*least).max(1)));
+        if needed > payload {
+            return Err(Error::format(
+                path,
+                format!("header declares {count} {name} elements, more than the {payload} bytes after it can hold (truncated or forged)"),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// [`read_ply`] from the bytes of a file; `path` names the source in errors. Binary
@@ -95,6 +142,7 @@ pub fn read_ply(path: &Path) -> Result<Mesh> {
 /// write) take a direct path about 30 times faster than the general parser, which handles
 /// everything else.
 pub fn read_ply_bytes(bytes: &[u8], path: &Path) -> Result<Mesh> {
+    check_declared_counts(bytes, path)?;
     match super::ply_binary::read(bytes, path) {
         Some(result) => result,
         None => read_ply_generic(&mut std::io::Cursor::new(bytes), path),

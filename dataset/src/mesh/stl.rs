@@ -8,7 +8,7 @@ use std::path::Path;
 
 /// Read an STL file.
 pub fn read_stl(path: &Path) -> Result<Mesh> {
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::io::input::open_regular(path)?;
     let stl = stl_io::read_stl(&mut BufReader::new(file))
         .map_err(|e| Error::format(path, format!("not a readable STL file (truncated or malformed): {e}")))?;
     let faces = stl

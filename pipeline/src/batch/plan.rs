@@ -27,6 +27,11 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
 
+/// The most tasks a plan may expand to.
+pub const MAX_TASKS: usize = 100_000;
+/// The most paths a dataset glob may visit before it is refused (a loop of links, a glob of the
+/// whole disk).
+pub const MAX_GLOB_VISITS: usize = 100_000;
 /// The expanded plan in a batch folder.
 pub const PLAN_FILE: &str = "plan.json";
 /// The `format` of [`BatchPlan`].
@@ -116,6 +121,17 @@ impl Default for EvaluationSettings {
 }
 
 impl EvaluationSettings {
+    /// Refuse settings no evaluation can run with.
+    fn check(&self) -> std::result::Result<(), String> {
+        if self.max_samples == 0 {
+            return Err("max_samples must be at least 1".into());
+        }
+        match self.threshold {
+            Some(t) if !(t.is_finite() && t > 0.0) => Err(format!("threshold must be a finite positive distance, not {t}")),
+            _ => Ok(()),
+        }
+    }
+
     /// The surface metrics' options.
     pub fn surface_options(&self) -> SurfaceOptions {
         SurfaceOptions { max_samples: self.max_samples, threshold: self.threshold, ..SurfaceOptions::default() }
@@ -194,7 +210,7 @@ impl BatchPlan {
     /// syntax error, an unknown option, a dataset path or glob that finds no scene, a dataset
     /// without the ground truth evaluation needs, a variant with both cues off, duplicate names.
     pub fn read(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+        let text = rmvp_dataset::io::input::read_text(path)?;
         let fault = |span: Option<Range<usize>>, why: String| Error::Plan {
             path: path.to_path_buf(),
             line: span.map(|s| line_of(&text, s.start)),
@@ -237,6 +253,19 @@ impl BatchPlan {
         if file.seeds.is_empty() {
             return Err(fault(None, "seeds is empty".into()));
         }
+        if let Err(why) = file.evaluation.check() {
+            return Err(fault(None, format!("[evaluation] {why}")));
+        }
+        let count = datasets.len().saturating_mul(file.variant.len()).saturating_mul(file.seeds.len());
+        if count > MAX_TASKS {
+            let why = format!(
+                "{} datasets x {} variants x {} seeds make {count} tasks, more than the {MAX_TASKS} a plan may hold; split it",
+                datasets.len(),
+                file.variant.len(),
+                file.seeds.len()
+            );
+            return Err(fault(None, why));
+        }
         let mut variants: Vec<Variant> = Vec::new();
         for entry in &file.variant {
             let (variant, span) = (entry.get_ref(), entry.span());
@@ -249,9 +278,12 @@ impl BatchPlan {
             if variants.iter().any(|v| v.name == variant.name) {
                 return Err(fault(Some(span), format!("two variants named {:?}", variant.name)));
             }
-            if variant.no_geometric && variant.no_photometric {
-                let why = format!("variant {:?} turns both cues off (no_geometric and no_photometric)", variant.name);
-                return Err(fault(Some(span), why));
+            if let Err(e) = variant.recon_options(0).validate() {
+                let why = match e {
+                    rmvp_recon::Error::BothCuesOff => "turns both cues off (no_geometric and no_photometric)".into(),
+                    other => other.to_string(),
+                };
+                return Err(fault(Some(span), format!("variant {:?}: {why}", variant.name)));
             }
             variants.push(variant.clone());
         }
@@ -294,6 +326,11 @@ impl BatchPlan {
             let why = format!("format {:?}, expected {PLAN_FORMAT:?}", plan.format);
             return Err(rmvp_dataset::Error::format(dir.join(PLAN_FILE), why).into());
         }
+        // Task ids become folder names under tasks/.
+        for task in &plan.tasks {
+            rmvp_dataset::io::input::file_name(&task.id)
+                .map_err(|why| rmvp_dataset::Error::format(dir.join(PLAN_FILE), format!("task {why}")))?;
+        }
         Ok(plan)
     }
 
@@ -321,8 +358,7 @@ fn expand_dataset(base: &Path, entry: &str) -> std::result::Result<Vec<Dataset>,
     let pattern = base.join(entry);
     let is_glob = entry.contains(['*', '?', '[']);
     let paths: Vec<PathBuf> = if is_glob {
-        let matches = glob::glob(&pattern.to_string_lossy()).map_err(|e| format!("dataset glob {entry:?}: {e}"))?;
-        matches.filter_map(|m| m.ok()).filter(|p| p.is_dir()).collect()
+        glob_folders(&pattern).map_err(|why| format!("dataset glob {entry:?}: {why}"))?
     } else {
         vec![pattern.clone()]
     };
@@ -349,6 +385,47 @@ fn expand_dataset(base: &Path, entry: &str) -> std::result::Result<Vec<Dataset>,
             Ok(Dataset { name, scene })
         })
         .collect()
+}
+
+/// The folders an absolute glob pattern matches (`*`, `?`, `[...]` within a component, `**`
+/// for any number of folders), in path order. The walk follows no symbolic link to a folder
+/// under `**`, and gives up after [`MAX_GLOB_VISITS`] folders, so it ends on any tree.
+fn glob_folders(pattern: &Path) -> std::result::Result<Vec<PathBuf>, String> {
+    let parts: Vec<String> = pattern.components().map(|c| c.as_os_str().to_string_lossy().into_owned()).collect();
+    let literal = parts.iter().position(|c| c.contains(['*', '?', '['])).unwrap_or(parts.len());
+    let base: PathBuf = parts[..literal].iter().collect();
+    let rest = parts[literal..]
+        .iter()
+        .map(|c| if c == "**" { Ok(None) } else { glob::Pattern::new(c).map(Some) })
+        .collect::<std::result::Result<Vec<_>, _>>()
+        .map_err(|e| e.to_string())?;
+    let mut found = std::collections::BTreeSet::new();
+    let mut stack = vec![(base, 0usize)];
+    let mut visits = 0usize;
+    while let Some((dir, at)) = stack.pop() {
+        visits += 1;
+        if visits > MAX_GLOB_VISITS {
+            return Err(format!("visits more than {MAX_GLOB_VISITS} folders (a loop of links, or too wide a glob)"));
+        }
+        let Some(part) = rest.get(at) else {
+            found.insert(dir);
+            continue;
+        };
+        if part.is_none() {
+            stack.push((dir.clone(), at + 1)); // `**` as no folder at all
+        }
+        let Ok(entries) = std::fs::read_dir(&dir) else { continue };
+        for entry in entries.flatten() {
+            let path = entry.path();
+            match part {
+                // `**` descends only into real folders: a link to a folder may lead back up.
+                None if entry.file_type().is_ok_and(|t| t.is_dir()) => stack.push((path, at)),
+                Some(p) if p.matches(&entry.file_name().to_string_lossy()) && path.is_dir() => stack.push((path, at + 1)),
+                _ => {}
+            }
+        }
+    }
+    Ok(found.into_iter().collect())
 }
 
 #[cfg(test)]
