@@ -14,6 +14,10 @@ struct Cli {
     /// Worker threads (default: all cores).
     #[arg(long, global = true)]
     threads: Option<usize>,
+    /// Largest image any input file may declare, in pixels (width x height); larger ones are
+    /// refused before they are read.
+    #[arg(long, global = true, default_value_t = rmvp_dataset::io::input::DEFAULT_MAX_PIXELS)]
+    max_pixels: u64,
     #[command(subcommand)]
     command: Command,
 }
@@ -72,6 +76,7 @@ fn main() {
     if let Some(n) = cli.threads {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().expect("thread pool set once");
     }
+    rmvp_dataset::io::input::set_max_pixels(cli.max_pixels);
     let result = match cli.command {
         Command::Demo(args) => demo::run(args),
         Command::Simulate(args) => simulate::run(args),
@@ -94,10 +99,24 @@ fn main() {
         Command::RenderNormals(args) => dataset::run(dataset::Command::RenderNormals(args)),
     };
     if let Err(e) = result {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", describe(&e));
         if let Some(hint) = commands::hint(&e) {
             eprintln!("{hint}");
         }
         std::process::exit(1);
     }
+}
+
+/// An error and its causes, each said once: a cause whose words the message already holds (an
+/// error that shows its source, then the source itself) is not said again.
+fn describe(error: &anyhow::Error) -> String {
+    let mut text = error.to_string();
+    for cause in error.chain().skip(1) {
+        let cause = cause.to_string();
+        if !text.contains(&cause) {
+            text.push_str(": ");
+            text.push_str(&cause);
+        }
+    }
+    text
 }

@@ -18,6 +18,14 @@ pub enum Error {
         /// Points in the scan.
         points: usize,
     },
+    /// Points no similarity can be fitted to (all at one place, on one line).
+    #[error("the {which} is degenerate: {why}")]
+    Degenerate {
+        /// `scan` or `target`.
+        which: &'static str,
+        /// What is wrong, with the figures.
+        why: String,
+    },
     /// A target without faces or normals: no surface to align to.
     #[error("the target needs faces or vertex normals")]
     TargetWithoutSurface,

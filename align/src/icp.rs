@@ -256,6 +256,13 @@ impl Alignment {
 /// `out/aligned.ply` (the scan moved onto the target).
 pub fn align_files(scan: &Path, target: &Path, out: &Path, options: &IcpOptions) -> Result<Alignment> {
     let (scan_mesh, target_mesh) = (Mesh::read(scan)?, Mesh::read(target)?);
+    // Inputs that no similarity can be fitted to are refused naming their file, before ICP
+    // runs and before anything is written.
+    for (path, mesh) in [(scan, &scan_mesh), (target, &target_mesh)] {
+        if let Some(why) = degenerate(&mesh.positions) {
+            return Err(rmvp_dataset::Error::format(path, format!("{why}: nothing to align")).into());
+        }
+    }
     let alignment = align(&scan_mesh, &target_mesh, options)?;
     alignment.write(&out.join(ALIGNMENT_FILE))?;
     alignment.transform.apply_to_mesh(&scan_mesh).write(&out.join(ALIGNED_MESH))?;
@@ -318,6 +325,28 @@ fn target_from_mesh(mesh: &Mesh, samples: usize, seed: u64, normalize: &Similari
     let tree = ImmutableKdTree::new_from_slice(&points)
         .map_err(|e| Error::BadMesh { which: "target", message: format!("k-d tree: {e:?}") })?;
     Ok(Target { points, normals, tree })
+}
+
+/// Why points cannot be aligned, if they cannot: fewer than 10, or all at one place or on one
+/// line (no rotation or scale is determined).
+fn degenerate(points: &[[f32; 3]]) -> Option<String> {
+    let n = points.len();
+    if n < 10 {
+        return Some(format!("{n} points; alignment needs at least 10"));
+    }
+    let points: Vec<Vector3<f64>> = points.iter().map(|p| Vector3::from(p.map(|v| v as f64))).collect();
+    let (c, _) = centroid_and_radius(&points);
+    let cov = points.iter().map(|p| (p - c) * (p - c).transpose()).sum::<Matrix3<f64>>() / n as f64;
+    let mut spread = cov.symmetric_eigen().eigenvalues.as_slice().to_vec();
+    spread.sort_by(|a, b| b.total_cmp(a));
+    let scale = c.norm_squared().max(spread[0]);
+    if !spread[0].is_finite() || spread[0] <= 1e-12 * scale.max(f64::MIN_POSITIVE) {
+        Some(format!("all {n} points coincide"))
+    } else if spread[1] <= 1e-10 * spread[0] {
+        Some(format!("all {n} points lie on one line"))
+    } else {
+        None
+    }
 }
 
 /// Centroid and RMS radius.
@@ -461,6 +490,11 @@ fn symmetric_score(
 pub fn align(scan: &Mesh, target: &Mesh, options: &IcpOptions) -> Result<Alignment> {
     if scan.positions.len() < 10 {
         return Err(Error::TooFewScanPoints { points: scan.positions.len() });
+    }
+    for (which, mesh) in [("scan", scan), ("target", target)] {
+        if let Some(why) = degenerate(&mesh.positions) {
+            return Err(Error::Degenerate { which, why });
+        }
     }
     let target_vertices: Vec<Vector3<f64>> =
         target.positions.iter().map(|p| Vector3::from(p.map(|v| v as f64))).collect();

@@ -54,10 +54,25 @@ pub struct SurfaceMetrics {
     pub samples: [usize; 2],
 }
 
+/// Read a mesh to evaluate: one without triangles is refused naming its file.
+pub fn read_surface(path: &std::path::Path) -> Result<Mesh> {
+    let mesh = Mesh::read(path)?;
+    if mesh.faces.is_empty() {
+        return Err(rmvp_dataset::Error::format(path, "has no triangles: a surface is needed to evaluate").into());
+    }
+    Ok(mesh)
+}
+
 fn trimesh(mesh: &Mesh, which: &'static str) -> Result<TriMesh> {
     mesh.validate()?;
     let vertices = mesh.positions.iter().map(|p| Vector::new(p[0], p[1], p[2])).collect();
-    TriMesh::new(vertices, mesh.faces.clone()).map_err(|e| Error::BadMesh { which, message: format!("{e:?}") })
+    TriMesh::new(vertices, mesh.faces.clone()).map_err(|e| {
+        let message = match e {
+            parry3d::shape::TriMeshBuilderError::EmptyIndices => "has no triangles".to_string(),
+            other => format!("cannot be used for distance queries ({other:?})"),
+        };
+        Error::BadMesh { which, message }
+    })
 }
 
 fn sample_count(mesh: &Mesh, options: &SurfaceOptions) -> usize {

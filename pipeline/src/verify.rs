@@ -54,7 +54,8 @@ pub fn verify(release: &Path) -> Result<Verification> {
     let mut names = BTreeSet::new();
     for (number, line) in listed.lines().enumerate() {
         let line_no = number + 1;
-        let Some((hash, file)) = line.split_once("  ").filter(|(h, _)| h.len() == 64 && h.bytes().all(|b| b.is_ascii_hexdigit()))
+        let Some((hash, file)) =
+            line.split_once("  ").filter(|(h, _)| h.len() == 64 && h.bytes().all(|b| b.is_ascii_hexdigit()))
         else {
             faults.push(format!("{CHECKSUMS} line {line_no}: not `<sha256>  <file>`"));
             continue;

@@ -7,7 +7,7 @@ use rmvp_calib::lab::LabSetup;
 use rmvp_capture::camera::{describe, list_devices, Camera, CameraSettings, TriggerSource};
 use rmvp_capture::preview::{serve, Preview};
 use rmvp_capture::session::positioning::Positioning;
-use rmvp_capture::session::{capture, SessionOptions};
+use rmvp_capture::session::{capture, check_session_folder, SessionOptions};
 use rmvp_capture::simulator::{SimulatedCamera, SimulatedSetup, SimulatorConfig};
 use rmvp_capture::PixelFormat;
 use rmvp_dataset::session::PositioningMode;
@@ -80,6 +80,7 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(args: Args) -> Result<()> {
+    check_session_folder(&args.output, args.resume)?;
     let simulator = if args.simulated {
         let config = SimulatorConfig {
             views: args.views,

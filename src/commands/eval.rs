@@ -1,9 +1,10 @@
 //! `rmvp eval --pred MESH --gt MESH [--scene SCENE] [--json]` ([`rmvp_align::evaluate`]).
 
 use anyhow::Result;
+use rmvp_align::surface::read_surface;
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
-use rmvp_dataset::{Mesh, Split};
+use rmvp_dataset::Split;
 use std::path::PathBuf;
 
 /// Arguments of `rmvp eval`.
@@ -41,7 +42,7 @@ pub struct Args {
 
 /// Run the command.
 pub fn run(args: Args) -> Result<()> {
-    let (pred, gt) = (Mesh::read(&args.pred)?, Mesh::read(&args.gt)?);
+    let (pred, gt) = (read_surface(&args.pred)?, read_surface(&args.gt)?);
     let defaults = SurfaceOptions::default();
     let options = SurfaceOptions {
         density: args.density.unwrap_or(defaults.density),

@@ -167,6 +167,26 @@ pub fn capture(camera: &mut Camera, options: &SessionOptions) -> Result<SessionR
     }
 }
 
+/// Refuse a session folder that already holds a session when not resuming, or none when
+/// resuming. Needs no camera: the command line asks this before it opens one, so an operator
+/// hears about `resume` first.
+pub fn check_session_folder(dir: &Path, resume: bool) -> Result<()> {
+    let exists = dir.join(SESSION_FILE).exists();
+    if !resume && exists {
+        let old = SessionManifest::read(dir)?;
+        return Err(Error::SessionExists {
+            dir: dir.to_path_buf(),
+            object: old.object,
+            complete: old.views.len(),
+            planned: old.views_planned,
+        });
+    }
+    if resume && !exists {
+        return Err(Error::NothingToResume { dir: dir.to_path_buf() });
+    }
+    Ok(())
+}
+
 /// Read the manifest to resume, or start a new one; check that a resumed session continues
 /// with the same camera and settings.
 fn open_manifest(
@@ -204,22 +224,10 @@ fn open_manifest(
         views: Vec::new(),
         complete: false,
     };
-    let exists = dir.join(SESSION_FILE).exists();
+    check_session_folder(dir, options.resume)?;
     if !options.resume {
-        if exists {
-            let old = SessionManifest::read(dir)?;
-            return Err(Error::SessionExists {
-                dir: dir.to_path_buf(),
-                object: old.object,
-                complete: old.views.len(),
-                planned: old.views_planned,
-            });
-        }
         std::fs::create_dir_all(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
         return Ok(fresh);
-    }
-    if !exists {
-        return Err(Error::NothingToResume { dir: dir.to_path_buf() });
     }
     let mut old = SessionManifest::read(dir)?;
     old.verify(dir)?;

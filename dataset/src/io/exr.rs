@@ -3,11 +3,11 @@
 use super::atomic::write_atomically;
 use super::input;
 use crate::{Error, Image, Result};
+use exr::meta::MetaData;
 use exr::prelude::{
     read, AnyChannel, AnyChannels, Encoding, FlatSamples, Image as ExrFile, Layer, LayerAttributes, LineOrder,
     ReadChannels, ReadLayers, WritableImage,
 };
-use exr::meta::MetaData;
 use std::io::{BufReader, Seek, SeekFrom};
 use std::path::Path;
 

@@ -44,7 +44,7 @@ pub fn set_max_pixels(pixels: u64) {
 /// Check an image size a file declares (`width x height`) against [`max_pixels`] and refuse an
 /// empty one, before its samples are allocated.
 pub fn check_pixels(path: &Path, width: u64, height: u64) -> Result<()> {
-    let pixels = width.checked_mul(height).unwrap_or(u64::MAX);
+    let pixels = width.saturating_mul(height);
     if pixels > max_pixels() {
         return Err(Error::format(
             path,
@@ -122,7 +122,7 @@ pub fn read_bytes_limited(path: &Path, limit: u64) -> Result<Vec<u8>> {
         return Err(Error::format(path, format!("is {size} bytes, more than the {limit} this file may have")));
     }
     let mut bytes = Vec::with_capacity(size as usize);
-    file.take(limit + 1).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
+    file.take(limit.saturating_add(1)).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
     if bytes.len() as u64 > limit {
         return Err(Error::format(path, format!("grew past the {limit} bytes this file may have while read")));
     }
@@ -138,7 +138,8 @@ pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
 /// Read a UTF-8 text file of at most [`MAX_TEXT_BYTES`].
 pub fn read_text(path: &Path) -> Result<String> {
     let bytes = read_bytes_limited(path, MAX_TEXT_BYTES)?;
-    String::from_utf8(bytes).map_err(|e| Error::format(path, format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))
+    String::from_utf8(bytes)
+        .map_err(|e| Error::format(path, format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))
 }
 
 /// Why a relative path read from a file breaks the rule, if it does.

@@ -58,7 +58,10 @@ fn read_array<T: Element, R: Read>(reader: R, path: &Path, available: u64, max_e
     if elements.saturating_mul(element_bytes) > available {
         return Err(Error::format(
             path,
-            format!("shape {shape:?} needs {} bytes, the file holds {available} (truncated or forged)", elements * element_bytes),
+            format!(
+                "shape {shape:?} needs {} bytes, the file holds {available} (truncated or forged)",
+                elements * element_bytes
+            ),
         ));
     }
     let expected = elements as usize;

@@ -35,7 +35,9 @@ pub fn read_png(path: &Path) -> Result<PngImage> {
     if raw > file_bytes.saturating_mul(MAX_DEFLATE_RATIO) {
         return Err(Error::format(
             path,
-            format!("declares a {width}x{height} image, more than its {file_bytes} bytes can hold (truncated or forged)"),
+            format!(
+                "declares a {width}x{height} image, more than its {file_bytes} bytes can hold (truncated or forged)"
+            ),
         ));
     }
     let mut buf = vec![0u8; size];

@@ -70,6 +70,12 @@ fn read_matrix4(path: &Path, name: &str, array: &npy::Array<f64>) -> Result<Matr
     if array.shape != [4, 4] {
         return Err(Error::format(path, format!("{name} has shape {:?}, expected [4, 4]", array.shape)));
     }
+    if let Some(i) = array.data.iter().position(|v| !v.is_finite()) {
+        return Err(Error::format(
+            path,
+            format!("{name} has a non-finite entry ({}) at row {}, column {}", array.data[i], i / 4, i % 4),
+        ));
+    }
     Ok(Matrix4::from_row_slice(&array.data))
 }
 

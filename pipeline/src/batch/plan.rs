@@ -127,7 +127,9 @@ impl EvaluationSettings {
             return Err("max_samples must be at least 1".into());
         }
         match self.threshold {
-            Some(t) if !(t.is_finite() && t > 0.0) => Err(format!("threshold must be a finite positive distance, not {t}")),
+            Some(t) if !(t.is_finite() && t > 0.0) => {
+                Err(format!("threshold must be a finite positive distance, not {t}"))
+            }
             _ => Ok(()),
         }
     }
@@ -420,7 +422,9 @@ fn glob_folders(pattern: &Path) -> std::result::Result<Vec<PathBuf>, String> {
             match part {
                 // `**` descends only into real folders: a link to a folder may lead back up.
                 None if entry.file_type().is_ok_and(|t| t.is_dir()) => stack.push((path, at)),
-                Some(p) if p.matches(&entry.file_name().to_string_lossy()) && path.is_dir() => stack.push((path, at + 1)),
+                Some(p) if p.matches(&entry.file_name().to_string_lossy()) && path.is_dir() => {
+                    stack.push((path, at + 1))
+                }
                 _ => {}
             }
         }

@@ -16,7 +16,6 @@ use crate::{Error, Result};
 use rmvp_align::{evaluate, Evaluation};
 use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::layout::read_scene;
-use rmvp_dataset::Mesh;
 use rmvp_recon::reconstruct::{reconstruct, LOG, MESH};
 use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
@@ -216,7 +215,7 @@ fn run_reconstruction(
             path: task.scene.clone(),
             why: "no ground-truth mesh to evaluate against".into(),
         })?;
-        let predicted = Mesh::read(&folder.join(MESH))?;
+        let predicted = rmvp_align::surface::read_surface(&folder.join(MESH))?;
         let evaluation = evaluate(&predicted, truth, Some(&scene), &plan.evaluation.surface_options())?;
         evaluation.write_error_maps(&folder.join("normal_errors"))?;
         Some(evaluation)

@@ -1,0 +1,327 @@
+//! Hostile and broken input against the `rmvp` binary: each case is refused within seconds,
+//! under 1 GiB of data memory, with a message that names the file and the fault once, and
+//! nothing is written outside the command's own folders.
+
+use rmvp_dataset::io::npy::{self, Array};
+use rmvp_dataset::Mesh;
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A path as the `&str` an argument list needs.
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Data memory a hostile case may make rmvp use.
+const MEMORY_LIMIT: u64 = 1 << 30;
+/// How long a hostile case may take.
+const DEADLINE: Duration = Duration::from_secs(60);
+
+/// Run rmvp under the memory limit and the deadline; returns (success, stderr).
+fn run(args: &[&str]) -> (bool, String) {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_rmvp"));
+    command.args(args).stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::piped());
+    // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
+    unsafe {
+        command.pre_exec(|| {
+            let limit = libc::rlimit { rlim_cur: MEMORY_LIMIT, rlim_max: MEMORY_LIMIT };
+            if libc::setrlimit(libc::RLIMIT_DATA, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let started = Instant::now();
+    let mut child = command.spawn().unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let text = std::thread::spawn(move || std::io::read_to_string(stderr).unwrap_or_default());
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if started.elapsed() > DEADLINE {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            panic!("rmvp {args:?} still ran after {DEADLINE:?}");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let stderr = text.join().unwrap();
+    eprintln!("rmvp {args:?} ({:.1} s): {}", started.elapsed().as_secs_f64(), stderr.trim());
+    (status.success(), stderr)
+}
+
+/// Run rmvp, expect a refusal that says every one of `words`, once each where asked, and no
+/// crash (an abort from memory or a panic).
+fn refused(args: &[&str], words: &[&str]) -> String {
+    let (success, stderr) = run(args);
+    assert!(!success, "rmvp {args:?} should have failed");
+    assert!(stderr.starts_with("error: "), "not a clean refusal: {stderr}");
+    for bad in ["panicked", "memory allocation", "RUST_BACKTRACE"] {
+        assert!(!stderr.contains(bad), "rmvp {args:?} crashed: {stderr}");
+    }
+    for word in words {
+        assert!(stderr.contains(word), "rmvp {args:?}: {stderr:?} does not say {word:?}");
+    }
+    stderr
+}
+
+fn mkfifo(path: &Path) {
+    let _ = std::fs::remove_file(path);
+    let c = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0, "mkfifo {}", path.display());
+}
+
+/// A writable copy of the spot fixture.
+fn spot_copy(tmp: &Path) -> PathBuf {
+    fn copy(from: &Path, to: &Path) {
+        std::fs::create_dir_all(to).unwrap();
+        for entry in std::fs::read_dir(from).unwrap() {
+            let entry = entry.unwrap();
+            let target = to.join(entry.file_name());
+            if entry.file_type().unwrap().is_dir() {
+                copy(&entry.path(), &target);
+            } else {
+                std::fs::write(&target, std::fs::read(entry.path()).unwrap()).unwrap();
+            }
+        }
+    }
+    let dir = tmp.join("spot");
+    copy(&rmvp_testkit::fixture("spot_nersp"), &dir);
+    dir
+}
+
+fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+        }
+    }
+    !crc
+}
+
+/// A valid PNG whose header's size is replaced by `width x height` (with a correct CRC).
+fn forged_png(from: &Path, width: u32, height: u32) -> Vec<u8> {
+    let mut bytes = std::fs::read(from).unwrap();
+    assert_eq!(&bytes[12..16], b"IHDR");
+    bytes[16..20].copy_from_slice(&width.to_be_bytes());
+    bytes[20..24].copy_from_slice(&height.to_be_bytes());
+    let crc = crc32(&bytes[12..29]);
+    bytes[29..33].copy_from_slice(&crc.to_be_bytes());
+    bytes
+}
+
+/// A valid EXR whose `dataWindow` is replaced by `0 0 size-1 size-1`.
+fn forged_exr(from: &Path, size: i32) -> Vec<u8> {
+    let mut bytes = std::fs::read(from).unwrap();
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes.windows(key.len()).position(|w| w == key).expect("a dataWindow") + key.len() + 4;
+    for (k, v) in [0, 0, size - 1, size - 1].iter().enumerate() {
+        bytes[at + 4 * k..at + 4 * k + 4].copy_from_slice(&v.to_le_bytes());
+    }
+    bytes
+}
+
+fn replace(path: &Path, bytes: &[u8]) {
+    let _ = std::fs::remove_file(path);
+    std::fs::write(path, bytes).unwrap();
+}
+
+#[test]
+fn a_release_cannot_make_verify_read_outside_it_or_walk_forever() {
+    let tmp = tempfile::tempdir().unwrap();
+    let release = tmp.path().join("release");
+    std::fs::create_dir_all(release.join("obj")).unwrap();
+    std::os::unix::fs::symlink("/etc", release.join("obj/etc")).unwrap();
+    std::os::unix::fs::symlink(".", release.join("a")).unwrap();
+    std::os::unix::fs::symlink(".", release.join("b")).unwrap();
+    std::fs::write(release.join("file.txt"), b"abc").unwrap();
+    std::os::unix::fs::symlink("/dev/zero", release.join("zero")).unwrap();
+    let hash = "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad";
+    let sums = format!(
+        "{hash}  file.txt\n{hash}  ../../../../etc/hostname\n{hash}  /dev/zero\n{hash}  obj/etc/hostname\n{hash}  zero\n"
+    );
+    std::fs::write(release.join("SHA256SUMS"), &sums).unwrap();
+    let stderr = refused(
+        &["dataset", "verify", s(&release)],
+        &[
+            "SHA256SUMS line 2: path \"../../../../etc/hostname\" climbs out of its folder",
+            "SHA256SUMS line 3: path \"/dev/zero\" is absolute",
+            "SHA256SUMS line 4: path \"obj/etc/hostname\" leads out of its folder through a symbolic link",
+            "SHA256SUMS line 5: path \"zero\" leads out of its folder through a symbolic link",
+            "a: not listed in SHA256SUMS",
+        ],
+    );
+    assert!(!stderr.contains("file.txt"), "file.txt matches its checksum: {stderr}");
+
+    mkfifo(&release.join("SHA256SUMS"));
+    refused(&["dataset", "verify", s(&release)], &["SHA256SUMS: is a named pipe (FIFO), not a regular file"]);
+}
+
+#[test]
+fn fifos_and_forged_sizes_in_a_scene_are_refused_naming_the_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = spot_copy(tmp.path());
+    let info = |words: &[&str]| refused(&["dataset", "info", s(&scene)], words);
+
+    let s0 = scene.join("s0/0000.npy");
+    let kept = std::fs::read(&s0).unwrap();
+    mkfifo(&s0);
+    info(&["s0/0000.npy: is a named pipe (FIFO), not a regular file"]);
+    replace(&s0, &kept);
+
+    let mask = scene.join("mask/0000.png");
+    let kept = std::fs::read(&mask).unwrap();
+    replace(&mask, &forged_png(&mask_source(), 200_000, 200_000));
+    info(&["mask/0000.png: declares a 200000x200000 image, more than the limit of 268435456 pixels"]);
+    replace(&mask, &kept);
+
+    let normal = scene.join("gt/normal/000.exr");
+    let kept = std::fs::read(&normal).unwrap();
+    replace(&normal, &forged_exr(&normal, 100_000));
+    info(&["gt/normal/000.exr: "]);
+    replace(&normal, &kept);
+
+    // A camera file whose array inflates to 64 MiB: refused from the array's header.
+    let cameras = scene.join("cameras.npz");
+    let kept = std::fs::read(&cameras).unwrap();
+    let big = Array { shape: vec![4096, 2048], data: vec![0f64; 4096 * 2048] };
+    std::fs::remove_file(&cameras).unwrap();
+    npy::write_npz(&cameras, &[("world_mat_0".to_string(), big)]).unwrap();
+    assert!(std::fs::metadata(&cameras).unwrap().len() < 1 << 20);
+    info(&["cameras.npz: array world_mat_0: array of shape [4096, 2048] has more than the 1024 elements"]);
+    replace(&cameras, &kept);
+
+    // A NaN camera is refused although gt/cameras.json holds a finite one.
+    let mut arrays = npy::read_npz::<f64>(&cameras).unwrap();
+    arrays.iter_mut().find(|(n, _)| n == "world_mat_0").unwrap().1.data[3] = f64::NAN;
+    std::fs::remove_file(&cameras).unwrap();
+    npy::write_npz(&cameras, &arrays).unwrap();
+    info(&["cameras.npz: world_mat_0 has a non-finite entry (NaN) at row 0, column 3"]);
+    replace(&cameras, &kept);
+
+    // Stokes of shape (128, 128, 0): refused by info and convert alike, no panic.
+    let empty = Array::<f32> { shape: vec![128, 128, 0], data: Vec::new() };
+    for component in ["s0", "s1", "s2"] {
+        let path = scene.join(component).join("0000.npy");
+        std::fs::remove_file(&path).unwrap();
+        npy::write_npy(&path, &empty).unwrap();
+    }
+    info(&["s0/0000.npy: empty image: shape [128, 128, 0]"]);
+    refused(&["dataset", "convert", s(&scene), s(&tmp.path().join("converted")), "--to", "rmvp"], &["empty image"]);
+    assert!(!tmp.path().join("converted").exists());
+}
+
+fn mask_source() -> PathBuf {
+    rmvp_testkit::fixture("spot_nersp").join("mask/0000.png")
+}
+
+/// A session folder whose manifest is the test manifest with its views replaced.
+fn session_with_views(dir: &Path, views: &str) -> PathBuf {
+    let text = include_str!("../dataset/tests/data/session.json");
+    let start = text.find("\"views\": [").unwrap();
+    let end = text.find("\"complete\"").unwrap();
+    let manifest = format!("{}\"views\": {views},\n  {}", &text[..start], &text[end..]);
+    let session = dir.join("deep/er/session");
+    std::fs::create_dir_all(&session).unwrap();
+    std::fs::write(session.join("session.json"), manifest).unwrap();
+    session
+}
+
+fn view(name: &str) -> String {
+    format!(
+        "{{\"index\": 0, \"name\": \"{name}\", \"captured_at\": \"2026-11-20T10:01:00Z\", \"temperature_c\": null, \"frames\": 1, \
+         \"dropped_frames\": 0, \"saturated_fraction\": 0.0, \"mean_dop\": 0.1, \"files\": []}}"
+    )
+}
+
+#[test]
+fn session_views_that_would_escape_repeat_or_be_missing_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("masks");
+    let escape = session_with_views(tmp.path(), &format!("[{}]", view("../../escape_x")));
+    refused(
+        &["masks", s(&escape), "-o", s(&out)],
+        &["session.json: view 0: name \"../../escape_x\" climbs out of its folder"],
+    );
+    assert!(!tmp.path().join("deep/escape_x.png").exists() && !out.exists());
+
+    let twice = session_with_views(tmp.path(), &format!("[{}, {}]", view("000"), view("000")));
+    refused(&["masks", s(&twice), "-o", s(&out)], &["session.json: two views are named \"000\""]);
+
+    let none = session_with_views(tmp.path(), "[]");
+    refused(&["masks", s(&none), "-o", s(&out)], &["session.json: lists no complete view"]);
+    assert!(!out.exists());
+}
+
+#[test]
+fn plans_with_impossible_values_loops_or_too_many_tasks_are_refused_at_plan_time() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("spot");
+    std::fs::create_dir_all(scene.join("gt")).unwrap();
+    std::fs::write(scene.join("cameras.npz"), b"").unwrap();
+    std::fs::write(scene.join("gt/mesh.ply"), b"").unwrap();
+    let plan = tmp.path().join("batch.toml");
+    let head = "datasets = [\"spot\"]\n\n[[variant]]\nname = \"v\"\n";
+    for (extra, line, words) in [
+        ("iters = 0\n", 3, "the number of iterations must be at least 1"),
+        ("mesh_res = 0\n", 3, "the mesh resolution (marching grid cells per axis) must be at least 1"),
+        ("batch = 0\n", 3, "the rays per iteration (batch) must be at least 1"),
+        ("\n[evaluation]\nthreshold = nan\n", 0, "[evaluation] threshold must be a finite positive distance, not NaN"),
+        ("\n[evaluation]\nmax_samples = 0\n", 0, "[evaluation] max_samples must be at least 1"),
+    ] {
+        std::fs::write(&plan, format!("{head}{extra}")).unwrap();
+        let at = if line > 0 { format!("batch.toml line {line}: ") } else { "batch.toml: ".into() };
+        refused(&["batch", "plan", s(&plan)], &[at.as_str(), words]);
+    }
+
+    let seeds: Vec<String> = (0..200_000).map(|i| i.to_string()).collect();
+    let variants: String = (0..50).map(|i| format!("\n[[variant]]\nname = \"v{i}\"\n")).collect();
+    std::fs::write(&plan, format!("datasets = [\"spot\"]\nseeds = [{}]\n{variants}", seeds.join(", "))).unwrap();
+    refused(
+        &["batch", "plan", s(&plan)],
+        &["1 datasets x 50 variants x 200000 seeds make 10000000 tasks, more than the 100000"],
+    );
+
+    std::os::unix::fs::symlink(".", tmp.path().join("a")).unwrap();
+    std::os::unix::fs::symlink(".", tmp.path().join("b")).unwrap();
+    std::fs::write(&plan, "datasets = [\"**/nothing*\"]\n\n[[variant]]\nname = \"v\"\n").unwrap();
+    refused(&["batch", "plan", s(&plan)], &["matches no folder"]);
+
+    mkfifo(&plan);
+    refused(&["batch", "plan", s(&plan)], &["batch.toml: is a named pipe (FIFO), not a regular file"]);
+}
+
+#[test]
+fn meshes_that_cannot_be_aligned_or_evaluated_are_refused_naming_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp.path().join("aligned");
+    let target = rmvp_testkit::fixture("spot_nersp").join("gt/mesh.ply");
+    let points = tmp.path().join("points.ply");
+    Mesh { positions: vec![[0.25, 0.5, 1.0]; 500], ..Mesh::default() }.write(&points).unwrap();
+    refused(
+        &["align", "--scan", s(&points), "--to", s(&target), "-o", s(&out)],
+        &[&format!("{}: all 500 points coincide: nothing to align", points.display())],
+    );
+    assert!(!out.exists(), "nothing is written for a refused scan");
+
+    let missing = tmp.path().join("missing.ply");
+    let stderr = refused(&["align", "--scan", s(&missing), "--to", s(&target), "-o", s(&out)], &["missing.ply"]);
+    assert_eq!(stderr.matches("os error 2").count(), 1, "the cause said once: {stderr}");
+
+    // An OBJ that names /dev/zero as its material library reads (materials are never opened).
+    let obj = tmp.path().join("tri.obj");
+    std::fs::write(&obj, "mtllib /dev/zero\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 2 4\nf 1 3 4\nf 2 3 4\n")
+        .unwrap();
+    let (success, stderr) = run(&["eval", "--pred", s(&obj), "--gt", s(&obj), "--max-samples", "2000"]);
+    assert!(success, "{stderr}");
+
+    refused(
+        &["eval", "--pred", s(&points), "--gt", s(&target)],
+        &[&format!("{}: has no triangles: a surface is needed to evaluate", points.display())],
+    );
+}
