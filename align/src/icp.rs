@@ -264,6 +264,12 @@ pub fn align_files(scan: &Path, target: &Path, out: &Path, options: &IcpOptions)
         }
     }
     let alignment = align(&scan_mesh, &target_mesh, options)?;
+    let t = &alignment.transform;
+    let finite = t.s.is_finite() && t.s > 0.0 && t.r.iter().chain(t.t.iter()).all(|v| v.is_finite());
+    if !finite {
+        let why = "ICP found no finite similarity (do the scan and the target overlap at all?)".into();
+        return Err(Error::Degenerate { which: "alignment", why });
+    }
     alignment.write(&out.join(ALIGNMENT_FILE))?;
     alignment.transform.apply_to_mesh(&scan_mesh).write(&out.join(ALIGNED_MESH))?;
     Ok(alignment)

@@ -164,6 +164,24 @@ fn forged_offset(rng: &mut Rng, len: usize, width: usize) -> usize {
     }
 }
 
+/// Forged fields swept before the random mutations: every 4-byte-aligned offset of the first 64
+/// bytes, with 2^20 and 2^24, big- and little-endian (the size fields of binary headers).
+const SWEPT: usize = 16 * 4;
+
+/// The `i`-th swept forgery of `seed`, and what it was.
+fn sweep(seed: &[u8], i: usize) -> (Vec<u8>, String) {
+    let mut bytes = seed.to_vec();
+    let at = 4 * (i / 4);
+    let value: u32 = if i.is_multiple_of(2) { 1 << 20 } else { 1 << 24 };
+    let big_endian = (i / 2).is_multiple_of(2);
+    let word = if big_endian { value.to_be_bytes() } else { value.to_le_bytes() };
+    if at + 4 <= bytes.len() {
+        bytes[at..at + 4].copy_from_slice(&word);
+    }
+    let order = if big_endian { "big" } else { "little" };
+    (bytes, format!("forged {order}-endian {value} at byte {at}"))
+}
+
 /// One mutation of `seed`, and what it was.
 fn mutate(seed: &[u8], rng: &mut Rng) -> (Vec<u8>, String) {
     let mut bytes = seed.to_vec();
@@ -240,7 +258,7 @@ fn child(family: &Family) {
     let mut panics = Vec::new();
     std::panic::set_hook(Box::new(|_| {}));
     for i in 0..MUTATIONS {
-        let (mut bytes, what) = mutate(&seed, &mut rng);
+        let (mut bytes, what) = if i < SWEPT { sweep(&seed, i) } else { mutate(&seed, &mut rng) };
         (family.fixup)(&mut bytes);
         let case = dir.path().join(format!("{i}"));
         std::fs::create_dir_all(&case).unwrap();
