@@ -126,6 +126,32 @@ fn forged_exr(from: &Path, size: i32) -> Vec<u8> {
     bytes
 }
 
+/// Every entry under `dir` with its bytes (regular files) or what it is (links, FIFOs), links not
+/// followed: a refused command must leave it as it was.
+fn snapshot(dir: &Path) -> Vec<(PathBuf, String)> {
+    let mut entries = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for entry in std::fs::read_dir(&d).unwrap() {
+            let path = entry.unwrap().path();
+            let meta = std::fs::symlink_metadata(&path).unwrap();
+            let what = if meta.is_dir() {
+                stack.push(path.clone());
+                "folder".to_string()
+            } else if meta.is_file() {
+                format!("{:?}", std::fs::read(&path).unwrap())
+            } else if meta.file_type().is_symlink() {
+                format!("link to {}", std::fs::read_link(&path).unwrap().display())
+            } else {
+                "special".to_string()
+            };
+            entries.push((path, what));
+        }
+    }
+    entries.sort();
+    entries
+}
+
 fn replace(path: &Path, bytes: &[u8]) {
     let _ = std::fs::remove_file(path);
     std::fs::write(path, bytes).unwrap();
@@ -146,6 +172,7 @@ fn a_release_cannot_make_verify_read_outside_it_or_walk_forever() {
         "{hash}  file.txt\n{hash}  ../../../../etc/hostname\n{hash}  /dev/zero\n{hash}  obj/etc/hostname\n{hash}  zero\n"
     );
     std::fs::write(release.join("SHA256SUMS"), &sums).unwrap();
+    let before = snapshot(tmp.path());
     let stderr = refused(
         &["dataset", "verify", s(&release)],
         &[
@@ -157,6 +184,7 @@ fn a_release_cannot_make_verify_read_outside_it_or_walk_forever() {
         ],
     );
     assert!(!stderr.contains("file.txt"), "file.txt matches its checksum: {stderr}");
+    assert!(snapshot(tmp.path()) == before, "verify changed the release");
 
     mkfifo(&release.join("SHA256SUMS"));
     refused(&["dataset", "verify", s(&release)], &["SHA256SUMS: is a named pipe (FIFO), not a regular file"]);
@@ -250,11 +278,12 @@ fn session_views_that_would_escape_repeat_or_be_missing_are_refused() {
     let tmp = tempfile::tempdir().unwrap();
     let out = tmp.path().join("masks");
     let escape = session_with_views(tmp.path(), &format!("[{}]", view("../../escape_x")));
+    let before = snapshot(tmp.path());
     refused(
         &["masks", s(&escape), "-o", s(&out)],
         &["session.json: view 0: name \"../../escape_x\" climbs out of its folder"],
     );
-    assert!(!tmp.path().join("deep/escape_x.png").exists() && !out.exists());
+    assert!(snapshot(tmp.path()) == before, "a refused session changed the folder around it");
 
     let twice = session_with_views(tmp.path(), &format!("[{}, {}]", view("000"), view("000")));
     refused(&["masks", s(&twice), "-o", s(&out)], &["session.json: two views are named \"000\""]);
@@ -314,6 +343,13 @@ fn meshes_that_cannot_be_aligned_or_evaluated_are_refused_naming_them() {
         &[&format!("{}: all 500 points coincide: nothing to align", points.display())],
     );
     assert!(!out.exists(), "nothing is written for a refused scan");
+
+    let fifo = tmp.path().join("fifo.ply");
+    mkfifo(&fifo);
+    refused(
+        &["align", "--scan", s(&fifo), "--to", s(&target), "-o", s(&out)],
+        &["fifo.ply: is a named pipe (FIFO), not a regular file"],
+    );
 
     let missing = tmp.path().join("missing.ply");
     let stderr = refused(&["align", "--scan", s(&missing), "--to", s(&target), "-o", s(&out)], &["missing.ply"]);
