@@ -208,10 +208,10 @@ fn fifos_and_forged_sizes_in_a_scene_are_refused_naming_the_file() {
     info(&["mask/0000.png: declares a 200000x200000 image, more than the limit of 268435456 pixels"]);
     replace(&mask, &kept);
 
-    // A training mask that decodes but differs from its ground-truth copy: the training mask is
-    // named, and the copy it disagrees with.
+    // A training mask that decodes but is another view's: the damaged file is named, and the
+    // copy it disagrees with.
     replace(&mask, &std::fs::read(scene.join("mask/0001.png")).unwrap());
-    info(&["mask/0000.png: differs from the ground-truth mask", "gt/mask/000.png (one of the two is damaged)"]);
+    info(&["mask/0000.png: disagrees at", "pixels with the alpha channel of", "input_azimuth_maps/0000.png"]);
     replace(&mask, &kept);
 
     let normal = scene.join("gt/normal/000.exr");

@@ -5,7 +5,8 @@
 //! cameras.npz                  world_mat_i = K[R|t] (4x4), scale_mat_i; training views i = 0..N-1
 //! image/0000.png               8-bit preview of S0
 //! input_azimuth_maps/0000.png  16-bit RGBA: R = G = B = AoP/pi*65535, A = mask*65535
-//! mask/0000.png                8-bit mask
+//! mask/0000.png                8-bit mask (optional: the official loader reads the azimuth
+//!                              map's alpha instead, and so do we when it is absent)
 //! s0/0000.npy s1/ s2/          float32 HxWx3 Stokes components
 //! polarized/0000_000.png ...   16-bit linear images behind polarizers at 0/45/90/135 degrees
 //! gt/cameras.json              every view (train and eval) with K, R, t, size; provenance
@@ -194,11 +195,11 @@ fn read_train_view(
     let mut view = View::new(name, Split::Train, camera);
     view.projection = Some(*world_mat);
     view.stokes = Some(stokes);
-    view.mask = Some(read_mask(&train_file(dir, "mask", i, "png"))?);
     let aop_path = train_file(dir, "input_azimuth_maps", i, "png");
-    if aop_path.is_file() {
-        view.aop = Some(read_azimuth_map(&aop_path)?);
-    }
+    let (aop, alpha) =
+        if aop_path.exists() { read_azimuth_map(&aop_path).map(|(a, m)| (Some(a), m))? } else { (None, None) };
+    view.aop = aop;
+    view.mask = Some(training_mask(&train_file(dir, "mask", i, "png"), &aop_path, alpha)?);
     let preview_path = train_file(dir, "image", i, "png");
     if preview_path.is_file() {
         view.preview = Some(png::read_png_u8(&preview_path)?);
@@ -217,13 +218,43 @@ fn read_mask(path: &Path) -> Result<Image<u8>> {
     Ok(if mask.channels() == 1 { mask } else { mask.channel(0) })
 }
 
-/// AoP from the R channel of an azimuth map (16-bit, 1, 3 or 4 channels).
-fn read_azimuth_map(path: &Path) -> Result<Image<f32>> {
+/// A training view's mask: `mask/%04d.png` where it exists, else the alpha channel of its azimuth
+/// map, which is where the official loader takes it from (it never reads `mask/`). Where both
+/// exist they must agree.
+fn training_mask(mask_path: &Path, aop_path: &Path, alpha: Option<Image<u8>>) -> Result<Image<u8>> {
+    if !mask_path.exists() {
+        return alpha.ok_or_else(|| {
+            Error::format(mask_path, format!("no mask: no such file, and {} has no alpha channel", aop_path.display()))
+        });
+    }
+    let mask = read_mask(mask_path)?;
+    if let Some(alpha) = alpha {
+        if alpha.size() == mask.size() {
+            let differ = mask.data().iter().zip(alpha.data()).filter(|(m, a)| (**m > 127) != (**a > 127)).count();
+            if differ > 0 {
+                return Err(Error::format(
+                    mask_path,
+                    format!(
+                        "disagrees at {differ} pixels with the alpha channel of {} (the mask the official loader reads)",
+                        aop_path.display()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(mask)
+}
+
+/// AoP from the R channel of an azimuth map (16-bit, 1 to 4 channels), and its alpha channel (2
+/// or 4 channels) as an 8-bit mask (non-zero: inside, as the official loader reads it).
+fn read_azimuth_map(path: &Path) -> Result<(Image<f32>, Option<Image<u8>>)> {
     let map = png::read_png_u16(path)?;
     if map.channels() >= 3 && map.data().chunks_exact(map.channels()).any(|p| p[0] != p[1] || p[0] != p[2]) {
         return Err(Error::format(path, "azimuth map channels R, G, B differ"));
     }
-    Ok(map.channel(0).map(aop_from_u16))
+    let alpha =
+        matches!(map.channels(), 2 | 4).then(|| map.channel(map.channels() - 1).map(|a| if a > 0 { 255 } else { 0 }));
+    Ok((map.channel(0).map(aop_from_u16), alpha))
 }
 
 /// The `gt/` images of a view; `index` is its position (a training view's file number).
