@@ -225,7 +225,7 @@ fn exports_give_the_same_cameras_and_rmvp3d_reads_back() {
     let scene = rmvp_dataset::layout::read_scene(&spot).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let dir = |name: &str| tmp.path().join(name);
-    for format in ["nerfstudio", "colmap", "rmvp3d"] {
+    for format in ["nerfstudio", "colmap", "rmvp3d", "pandora"] {
         ok(&["dataset", "export", s(&spot), "--format", format, "-o", s(&dir(format))]);
     }
     let with_stokes: Vec<&rmvp_dataset::View> = scene.views.iter().filter(|v| v.stokes.is_some()).collect();
@@ -240,9 +240,25 @@ fn exports_give_the_same_cameras_and_rmvp3d_reads_back() {
     let transforms = dir("nerfstudio").join("transforms.json");
     same(rmvp_dataset::exchange::nerfstudio::Transforms::read(&transforms).unwrap().cameras(&transforms).unwrap());
     assert!(dir("nerfstudio").join("masks/000.png").is_file());
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&transforms).unwrap()).unwrap();
+    let train: Vec<String> = with_stokes
+        .iter()
+        .filter(|v| v.split == rmvp_dataset::Split::Train)
+        .map(|v| format!("images/{}.png", v.name))
+        .collect();
+    assert_eq!(json["train_filenames"], serde_json::json!(train), "the dataset's split");
+    assert!(json["fl_x"].is_number(), "one camera: intrinsics at the top level");
     let sparse = dir("colmap").join("sparse/0");
     same(rmvp_dataset::exchange::colmap::ColmapModel::read(&sparse).unwrap().cameras(&sparse).unwrap());
     assert!(dir("colmap").join("images/000.png").is_file());
+    // RMVP3D (the release's mask/ folder) and PANDORA read back directly: the same cameras and
+    // masks; RMVP3D's Stokes bit for bit.
+    assert!(dir("rmvp3d").join("mask/0000.png").is_file());
+    let pandora = rmvp_dataset::layout::read_scene(&dir("pandora")).unwrap();
+    for (a, b) in pandora.views.iter().zip(&with_stokes) {
+        assert_eq!(a.mask, b.mask, "view {}", b.name);
+        assert!((a.camera.k - b.camera.k).abs().max() < 1e-9 && (a.camera.t - b.camera.t).abs().max() < 1e-12);
+    }
     // RMVP3D back into our layout: the same Stokes, masks and cameras.
     ok(&["dataset", "import", s(&dir("rmvp3d")), "-o", s(&dir("back"))]);
     let back = rmvp_dataset::layout::read_scene(&dir("back")).unwrap();

@@ -4,18 +4,19 @@
 //!   `images/<view>.png` (S0 previews), `masks/<view>.png`;
 //! - `colmap`: a text model `sparse/0/{cameras,images,points3D}.txt` (one `OPENCV` camera per
 //!   view, no points) and `images/<view>.png`;
-//! - `rmvp3d`: RMVP3D's release layout ([`rmvp_dataset::exchange::rmvp3d`]), read back by
-//!   [`import_rmvp3d`].
+//! - `rmvp3d`: RMVP3D's original part ([`rmvp_dataset::layout::rmvp3d`]), read back by
+//!   [`import_rmvp3d`] (and by every command that reads a scene);
+//! - `pandora`: PANDORA's layout ([`rmvp_dataset::layout::pandora`]).
 //!
 //! Every view with Stokes is exported; cameras are the dataset's (lens distortion removed).
 
 use crate::{Error, Result};
 use rmvp_dataset::exchange::colmap::ColmapModel;
 use rmvp_dataset::exchange::nerfstudio::Transforms;
-use rmvp_dataset::exchange::rmvp3d;
 use rmvp_dataset::io::png;
+use rmvp_dataset::layout::{pandora, read_scene, rmvp3d};
 use rmvp_dataset::visualize::preview;
-use rmvp_dataset::{Camera, Scene};
+use rmvp_dataset::{Camera, Scene, Split};
 use std::path::Path;
 
 /// A layout to export to.
@@ -27,6 +28,8 @@ pub enum ExportFormat {
     Colmap,
     /// RMVP3D's release layout.
     Rmvp3d,
+    /// PANDORA's layout.
+    Pandora,
 }
 
 impl std::str::FromStr for ExportFormat {
@@ -37,7 +40,8 @@ impl std::str::FromStr for ExportFormat {
             "nerfstudio" => Ok(ExportFormat::Nerfstudio),
             "colmap" => Ok(ExportFormat::Colmap),
             "rmvp3d" => Ok(ExportFormat::Rmvp3d),
-            other => Err(format!("unknown format {other:?} (nerfstudio, colmap, rmvp3d)")),
+            "pandora" => Ok(ExportFormat::Pandora),
+            other => Err(format!("unknown format {other:?} (nerfstudio, colmap, rmvp3d, pandora)")),
         }
     }
 }
@@ -71,7 +75,11 @@ pub fn export_scene(scene: &Scene, dir: &Path, format: ExportFormat) -> Result<(
                     (format!("images/{}.png", v.name), mask, v.camera.clone())
                 })
                 .collect();
-            Transforms::from_cameras(&cameras).write(&dir.join("transforms.json"))?;
+            let split = |split: Split| -> Vec<String> {
+                views.views.iter().filter(|v| v.split == split).map(|v| format!("images/{}.png", v.name)).collect()
+            };
+            let (train, val) = (split(Split::Train), split(Split::Eval));
+            Transforms::from_cameras(&cameras).with_split(train, val).write(&dir.join("transforms.json"))?;
         }
         ExportFormat::Colmap => {
             write_pictures(false)?;
@@ -82,6 +90,7 @@ pub fn export_scene(scene: &Scene, dir: &Path, format: ExportFormat) -> Result<(
             ColmapModel::from_cameras(&cameras).write_text(&sparse)?;
         }
         ExportFormat::Rmvp3d => rmvp3d::write(&views, dir)?,
+        ExportFormat::Pandora => pandora::write(&views, dir)?,
     }
     Ok(())
 }
@@ -89,5 +98,9 @@ pub fn export_scene(scene: &Scene, dir: &Path, format: ExportFormat) -> Result<(
 /// An RMVP3D object folder as a scene (every view a training view: choose a split with
 /// `rmvp dataset convert` or by name at reconstruction).
 pub fn import_rmvp3d(dir: &Path) -> Result<Scene> {
-    Ok(rmvp3d::read(dir)?)
+    if rmvp_dataset::layout::Layout::detect(dir)? != rmvp_dataset::layout::Layout::Rmvp3d {
+        let why = format!("not an RMVP3D object folder (no {}/NNNN.npz archives)", rmvp3d::STOKES_FOLDER);
+        return Err(Error::Folder { path: dir.to_path_buf(), why });
+    }
+    Ok(read_scene(dir)?)
 }

@@ -11,7 +11,7 @@
 
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Rotation3, Vector3};
-use rmvp_dataset::io::{input, png, read_linear};
+use rmvp_dataset::io::{hdr, input, png, read_linear};
 use rmvp_dataset::visualize::srgb_to_linear;
 use rmvp_dataset::Image;
 use rmvp_render::EnvMap;
@@ -29,16 +29,7 @@ pub fn read_panorama(path: &Path) -> Result<Image<f32>> {
             png::PngImage::U8(i) => i.map(|v| srgb_to_linear(v as f32 / 255.0)),
             png::PngImage::U16(i) => i.map(|v| v as f32 / 65535.0),
         },
-        "hdr" => {
-            let bytes = input::read_bytes(path)?;
-            let mut decoder = zune_hdr::HdrDecoder::new(&bytes);
-            decoder.decode_headers().map_err(|e| bad(format!("not a readable Radiance HDR file: {e:?}")))?;
-            let (w, h) = decoder.get_dimensions().ok_or_else(|| bad("no image size in the header".into()))?;
-            input::check_pixels(path, w as u64, h as u64)?;
-            let data = decoder.decode().map_err(|e| bad(format!("not a readable Radiance HDR file: {e:?}")))?;
-            let (w, h) = decoder.get_dimensions().ok_or_else(|| bad("no image size in the header".into()))?;
-            Image::from_vec(w, h, 3, data).map_err(|e| bad(e.to_string()))?
-        }
+        "hdr" => hdr::read_hdr(path)?,
         "jpg" | "jpeg" => {
             let bytes = input::read_bytes(path)?;
             let options = zune_jpeg::zune_core::options::DecoderOptions::default()

@@ -26,13 +26,14 @@ pub enum Command {
     Publish(PublishArgs),
     /// Verify a release: checksums, views, the NeRSP layout, masks and cameras against the scan.
     Verify(VerifyArgs),
-    /// Export a scene for other tools: nerfstudio, COLMAP (text model) or RMVP3D's layout.
+    /// Export a scene for other tools: nerfstudio, COLMAP (text model), RMVP3D's or PANDORA's
+    /// layout.
     Export(ExportArgs),
     /// Import an RMVP3D object folder as a scene (NeRSP layout or ours).
     Import(ImportArgs),
-    /// Summarise and validate a scene folder (NeRSP or rmvp layout).
+    /// Summarise and validate a scene folder in any layout (NeRSP, rmvp, RMVP3D, PANDORA).
     Info(InfoArgs),
-    /// Convert a scene between the NeRSP and rmvp layouts, without loss.
+    /// Convert a scene from any layout into another (NeRSP and rmvp without loss).
     Convert(ConvertArgs),
     /// Ray cast a mesh's normal maps, masks and depths in every view of a scene.
     RenderNormals(RenderNormalsArgs),
@@ -105,7 +106,7 @@ pub struct PublishArgs {
 pub struct ExportArgs {
     /// Scene folder (either layout), e.g. a dataset's `rmvp/`.
     scene: PathBuf,
-    /// nerfstudio, colmap or rmvp3d.
+    /// nerfstudio, colmap, rmvp3d or pandora.
     #[arg(long, value_parser = str::parse::<ExportFormat>)]
     format: ExportFormat,
     /// Output folder (new or empty).
@@ -136,7 +137,7 @@ pub struct VerifyArgs {
 /// Arguments of `rmvp dataset info`.
 #[derive(clap::Args)]
 pub struct InfoArgs {
-    /// Scene folder (NeRSP or rmvp layout).
+    /// Scene folder in any layout (detected by its files; printed).
     scene: PathBuf,
     /// Print the summary as JSON.
     #[arg(long)]
@@ -146,11 +147,12 @@ pub struct InfoArgs {
 /// Arguments of `rmvp dataset convert`.
 #[derive(clap::Args)]
 pub struct ConvertArgs {
-    /// Scene folder to read (either layout).
+    /// Scene folder to read (any layout).
     source: PathBuf,
     /// Folder to write; must not exist yet, or be empty.
     destination: PathBuf,
-    /// Layout to write: `nersp` (the official NeRSP loader's) or `rmvp` (ours).
+    /// Layout to write: `nersp` (the official NeRSP loader's), `rmvp` (ours), `rmvp3d` or
+    /// `pandora` (their views with Stokes).
     #[arg(long, value_enum)]
     to: Layout,
 }

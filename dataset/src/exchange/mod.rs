@@ -1,7 +1,6 @@
-//! Other tools' files, read and written in rmvp's conventions: COLMAP sparse models
-//! ([`colmap`]), nerfstudio's `transforms.json` ([`nerfstudio`]) and RMVP3D's release layout
-//! ([`rmvp3d`]). (IDR/NeRSP's `cameras.npz` is the NeRSP layout's own, [`crate::layout::nersp`].)
+//! Other tools' camera files, read and written in rmvp's conventions: COLMAP sparse models
+//! ([`colmap`]) and nerfstudio's `transforms.json` ([`nerfstudio`]). (Scene folders as the field
+//! publishes them, IDR/NeRSP's `cameras.npz` among them, are layouts: [`crate::layout`].)
 
 pub mod colmap;
 pub mod nerfstudio;
-pub mod rmvp3d;

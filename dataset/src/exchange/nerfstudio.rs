@@ -73,7 +73,16 @@ pub struct Transforms {
     pub intrinsics: Intrinsics,
     /// The frames.
     pub frames: Vec<Frame>,
+    /// Images of the training split (nerfstudio takes a 0.9 fraction of the frames without it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub train_filenames: Option<Vec<String>>,
+    /// Images of the evaluation split.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub val_filenames: Option<Vec<String>>,
 }
+
+/// How closely intrinsics must agree to be written once for all frames (relative).
+pub const SHARED_INTRINSICS_TOLERANCE: f64 = 1e-9;
 
 fn opencv() -> String {
     "OPENCV".into()
@@ -102,6 +111,30 @@ impl Intrinsics {
         }
     }
 
+    /// Whether `self` and `other` agree to [`SHARED_INTRINSICS_TOLERANCE`] (relative), sizes
+    /// exactly.
+    fn agrees_with(&self, other: &Intrinsics) -> bool {
+        let close = |a: Option<f64>, b: Option<f64>| match (a, b) {
+            (Some(a), Some(b)) => (a - b).abs() <= SHARED_INTRINSICS_TOLERANCE * a.abs().max(b.abs()).max(1.0),
+            (a, b) => a == b,
+        };
+        self.w == other.w
+            && self.h == other.h
+            && [
+                (self.fl_x, other.fl_x),
+                (self.fl_y, other.fl_y),
+                (self.cx, other.cx),
+                (self.cy, other.cy),
+                (self.k1, other.k1),
+                (self.k2, other.k2),
+                (self.k3, other.k3),
+                (self.p1, other.p1),
+                (self.p2, other.p2),
+            ]
+            .into_iter()
+            .all(|(a, b)| close(a, b))
+    }
+
     /// `self`, each missing value taken from `shared`.
     fn or(&self, shared: &Intrinsics) -> Intrinsics {
         Intrinsics {
@@ -121,11 +154,12 @@ impl Intrinsics {
 }
 
 impl Transforms {
-    /// The transforms of `cameras` (image path, mask path, camera), intrinsics shared when they
-    /// are the same for all.
+    /// The transforms of `cameras` (image path, mask path, camera), intrinsics written once at
+    /// the top level when every frame's agree with the first's to
+    /// [`SHARED_INTRINSICS_TOLERANCE`].
     pub fn from_cameras(cameras: &[(String, Option<String>, Camera)]) -> Self {
         let all: Vec<Intrinsics> = cameras.iter().map(|(_, _, c)| Intrinsics::of(c)).collect();
-        let shared = all.windows(2).all(|w| w[0] == w[1]);
+        let shared = all.iter().all(|i| i.agrees_with(&all[0]));
         let frames = cameras
             .iter()
             .zip(&all)
@@ -142,7 +176,13 @@ impl Transforms {
             })
             .collect();
         let intrinsics = if shared { all.first().cloned().unwrap_or_default() } else { Intrinsics::default() };
-        Self { camera_model: opencv(), intrinsics, frames }
+        Self { camera_model: opencv(), intrinsics, frames, train_filenames: None, val_filenames: None }
+    }
+
+    /// The same frames with the split written out: `train` and `val` are image paths as in the
+    /// frames.
+    pub fn with_split(self, train: Vec<String>, val: Vec<String>) -> Self {
+        Self { train_filenames: Some(train), val_filenames: Some(val), ..self }
     }
 
     /// Every frame's camera, named by its image's file stem.
@@ -216,5 +256,35 @@ mod tests {
         assert_eq!(back[0].0, "007");
         assert!((back[0].1.r - camera.r).abs().max() < 1e-12 && (back[0].1.t - camera.t).abs().max() < 1e-12);
         assert_eq!(back[0].1.k, camera.k);
+    }
+
+    #[test]
+    fn intrinsics_are_shared_when_they_agree_to_the_tolerance_and_the_split_is_written() {
+        let camera = |fx: f64, t: f64| {
+            let k = Matrix3::new(fx, 0.0, 611.5, 0.0, 1700.0, 511.5, 0.0, 0.0, 1.0);
+            Camera::new(k, Matrix3::identity(), Vector3::new(t, 0.0, 3.0), 1224, 1024)
+        };
+        let frames = |fx2: f64| {
+            vec![
+                ("images/000.png".to_string(), None, camera(1700.0, 0.0)),
+                ("images/001.png".into(), None, camera(fx2, 0.1)),
+            ]
+        };
+        let shared = Transforms::from_cameras(&frames(1700.0 * (1.0 + 1e-12)));
+        assert_eq!(shared.intrinsics.fl_x, Some(1700.0));
+        assert!(shared.frames.iter().all(|f| f.intrinsics == Intrinsics::default()));
+        let apart = Transforms::from_cameras(&frames(1700.0 * (1.0 + 1e-6)));
+        assert_eq!(apart.intrinsics, Intrinsics::default());
+        assert_eq!(apart.frames[1].intrinsics.fl_x, Some(1700.0 * (1.0 + 1e-6)));
+
+        let split = shared.with_split(vec!["images/000.png".into()], vec!["images/001.png".into()]);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("transforms.json");
+        split.write(&path).unwrap();
+        let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        assert_eq!(json["train_filenames"], serde_json::json!(["images/000.png"]));
+        assert_eq!(json["val_filenames"], serde_json::json!(["images/001.png"]));
+        assert_eq!(json["fl_x"], serde_json::json!(1700.0));
+        assert_eq!(Transforms::read(&path).unwrap(), split);
     }
 }

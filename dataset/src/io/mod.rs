@@ -6,6 +6,7 @@
 
 pub mod atomic;
 pub mod exr;
+pub mod hdr;
 pub mod input;
 pub mod json;
 pub mod npy;

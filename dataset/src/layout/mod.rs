@@ -1,8 +1,19 @@
-//! Scene folders on disk: the official NeRSP loader's layout ([`nersp`]) and ours, manifest-based
-//! ([`rmvp`]). Both are documented in `docs/formats.md`.
+//! Scene folders on disk: the official NeRSP loader's layout ([`nersp`]), ours, manifest-based
+//! ([`rmvp`]), and two more as the field publishes them: RMVP3D's original part ([`rmvp3d`]) and
+//! PANDORA's ([`pandora`]). Each is documented in `docs/formats.md`; each is read and written.
+//!
+//! **Stokes scale.** Every layout's Stokes images are kept as they are stored: rmvp halves
+//! nothing. The official NeRSP loader multiplies `s0/ s1/ s2/` (and PolGS the RMVP3D archives
+//! and PANDORA's files) by 0.5 on load; PolGS reads SMVP3D's `s0/` arrays unhalved. A constant
+//! factor only rescales the reflectance the reconstruction fits (its albedo and specular
+//! weights), never the geometry, and keeping the stored values makes every conversion between
+//! layouts exact. The one transformation is PANDORA's shift: it stores `S0 + S1` and `S0 + S2`,
+//! read back as `S1` and `S2`.
 
 pub mod nersp;
+pub mod pandora;
 pub mod rmvp;
+pub mod rmvp3d;
 
 use crate::{Error, Result, Scene};
 use std::path::Path;
@@ -15,17 +26,39 @@ pub enum Layout {
     Nersp,
     /// Ours: `scene.json` and `views/<name>/...`.
     Rmvp,
+    /// RMVP3D's original part: `cameras.npz`, `images_stokes/NNNN.npz`, `mask/`.
+    Rmvp3d,
+    /// PANDORA's: `cameras.npz` keyed by stem, `images_stokes/NN_s0.hdr` (shifted Stokes), `mask/`.
+    Pandora,
 }
 
 impl Layout {
-    /// Recognise the layout of a scene folder by its index file.
+    /// Recognise the layout of a scene folder by its files: `scene.json` (ours), else
+    /// `cameras.npz` with `images_stokes/` of `NNNN.npz` archives (RMVP3D) or `NN_s0.hdr` files
+    /// (PANDORA), else `cameras.npz` (NeRSP). A folder that has part of a layout is told which
+    /// file of which layout it lacks.
     pub fn detect(dir: &Path) -> Result<Self> {
+        let stokes = dir.join(rmvp3d::STOKES_FOLDER);
         if dir.join(rmvp::MANIFEST).is_file() {
             Ok(Layout::Rmvp)
         } else if dir.join(nersp::CAMERAS).is_file() {
-            Ok(Layout::Nersp)
+            if !stokes.is_dir() {
+                Ok(Layout::Nersp)
+            } else if pandora::recognise(dir) {
+                Ok(Layout::Pandora)
+            } else if rmvp3d::recognise(dir) {
+                Ok(Layout::Rmvp3d)
+            } else {
+                Err(Error::format(
+                    &stokes,
+                    "holds neither NNNN.npz archives (RMVP3D) nor NN_s0.hdr files (PANDORA): no Stokes images",
+                ))
+            }
         } else if !dir.is_dir() {
             Err(Error::io(dir, std::io::Error::new(std::io::ErrorKind::NotFound, "no such scene folder")))
+        } else if stokes.is_dir() || dir.join("s0").is_dir() {
+            let which = if stokes.is_dir() { "RMVP3D or PANDORA" } else { "NeRSP" };
+            Err(Error::format(dir, format!("looks like the {which} layout but has no {}", nersp::CAMERAS)))
         } else {
             Err(Error::format(dir, format!("not a scene: neither {} nor {} found", rmvp::MANIFEST, nersp::CAMERAS)))
         }
@@ -36,6 +69,8 @@ impl Layout {
         match self {
             Layout::Nersp => "nersp",
             Layout::Rmvp => "rmvp",
+            Layout::Rmvp3d => "rmvp3d",
+            Layout::Pandora => "pandora",
         }
     }
 }
@@ -45,6 +80,8 @@ pub fn read_scene(dir: &Path) -> Result<Scene> {
     let scene = match Layout::detect(dir)? {
         Layout::Nersp => nersp::read(dir)?,
         Layout::Rmvp => rmvp::read(dir)?,
+        Layout::Rmvp3d => rmvp3d::read(dir)?,
+        Layout::Pandora => pandora::read(dir)?,
     };
     scene.validate().map_err(|e| e.in_file(dir))?;
     Ok(scene)
@@ -57,6 +94,8 @@ pub fn write_scene(scene: &Scene, dir: &Path, layout: Layout) -> Result<()> {
     match layout {
         Layout::Nersp => nersp::write(scene, dir),
         Layout::Rmvp => rmvp::write(scene, dir),
+        Layout::Rmvp3d => rmvp3d::write(scene, dir),
+        Layout::Pandora => pandora::write(scene, dir),
     }
 }
 

@@ -114,21 +114,38 @@ pub fn read(dir: &Path) -> Result<Scene> {
     Ok(Scene { views, normalization, mesh, env_map, metadata })
 }
 
-/// The `world_mat_i` (`K [R | t]`, 4x4) of an IDR/NeRSP `cameras.npz`, in order, and the one
-/// `scale_mat` they share (identity when absent).
+/// The `world_mat_i` (`K [R | t]`, 4x4) of an IDR/NeRSP `cameras.npz`, in order (0-based keys),
+/// and the one `scale_mat` they share (identity when absent).
 pub fn read_cameras(path: &Path) -> Result<(Vec<Matrix4<f64>>, Matrix4<f64>)> {
-    let arrays = npy::read_npz_limited::<f64>(path, CAMERA_ARRAY_ELEMENTS)?;
-    let lookup = |name: &str| arrays.iter().find(|(n, _)| n == name).map(|(_, a)| a);
-    let count = (0..).take_while(|i| lookup(&format!("world_mat_{i}")).is_some()).count();
-    if count == 0 {
+    let arrays = read_camera_arrays(path)?;
+    let cameras = cameras_by_keys(path, &arrays, (0..).map(|i: usize| i.to_string()))?;
+    if cameras.0.is_empty() {
         return Err(Error::format(path, "no world_mat_0"));
     }
-    let mut world_mats = Vec::with_capacity(count);
+    Ok(cameras)
+}
+
+/// Every array of a camera file (each at most [`CAMERA_ARRAY_ELEMENTS`]).
+pub(crate) fn read_camera_arrays(path: &Path) -> Result<Vec<(String, npy::Array<f64>)>> {
+    npy::read_npz_limited::<f64>(path, CAMERA_ARRAY_ELEMENTS)
+}
+
+/// `world_mat_<key>` for each key in turn while the file has one, and the `scale_mat_<key>` they
+/// share (identity when absent; per-view normalisations are refused). The keys are 0-based
+/// indices (NeRSP), 1-based two-digit ones (RMVP3D as PolGS reads it) or file stems (PANDORA).
+pub(crate) fn cameras_by_keys(
+    path: &Path,
+    arrays: &[(String, npy::Array<f64>)],
+    keys: impl Iterator<Item = String>,
+) -> Result<(Vec<Matrix4<f64>>, Matrix4<f64>)> {
+    let lookup = |name: &str| arrays.iter().find(|(n, _)| n == name).map(|(_, a)| a);
+    let mut world_mats = Vec::new();
     let mut normalization = None;
-    for i in 0..count {
-        let name = format!("world_mat_{i}");
-        world_mats.push(read_matrix4(path, &name, lookup(&name).expect("counted"))?);
-        let scale_name = format!("scale_mat_{i}");
+    for key in keys {
+        let name = format!("world_mat_{key}");
+        let Some(array) = lookup(&name) else { break };
+        world_mats.push(read_matrix4(path, &name, array)?);
+        let scale_name = format!("scale_mat_{key}");
         let scale = match lookup(&scale_name) {
             Some(a) => read_matrix4(path, &scale_name, a)?,
             None => Matrix4::identity(),
@@ -138,13 +155,13 @@ pub fn read_cameras(path: &Path) -> Result<(Vec<Matrix4<f64>>, Matrix4<f64>)> {
             Some(first) if first != scale => {
                 return Err(Error::format(
                     path,
-                    format!("{scale_name} differs from scale_mat_0; per-view normalisations are not supported"),
+                    format!("{scale_name} differs from the first view's scale_mat; per-view normalisations are not supported"),
                 ));
             }
             _ => {}
         }
     }
-    Ok((world_mats, normalization.expect("count > 0")))
+    Ok((world_mats, normalization.unwrap_or_else(Matrix4::identity)))
 }
 
 fn read_gt_cameras(path: &Path) -> Result<(Vec<GtCamera>, serde_json::Map<String, serde_json::Value>)> {
