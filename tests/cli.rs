@@ -430,3 +430,22 @@ fn recon_resumes_where_it_stopped_and_reports_bad_input() {
     let err = fails(&["recon", s(&tmp.path().join("missing")), "-o", s(&tmp.path().join("x"))]);
     assert!(err.contains("missing"), "{err}");
 }
+
+#[test]
+fn recon_trains_at_a_downscale_and_writes_outputs_at_full_size() {
+    let tmp = tempfile::tempdir().unwrap();
+    let fixture = rmvp_testkit::fixture("spot_nersp");
+    let out = tmp.path().join("half");
+    let args = ["recon", s(&fixture), "-o", s(&out), "--iters", "4", "--batch", "32", "--mesh-res", "24"];
+    ok(&[&args[..], &["--downscale", "2"]].concat());
+    let full = rmvp_dataset::io::png::read_png_u8(&fixture.join("image/0000.png")).unwrap().size();
+    for file in ["normals/000.png", "normals/006.png"] {
+        let size = rmvp_dataset::io::png::read_png_u8(&out.join(file)).unwrap().size();
+        assert_eq!(size, full, "{file} at the scene's size");
+    }
+    // The factor is part of the run: resuming at another one is refused.
+    let err = fails(&[&args[..], &["--downscale", "1", "--resume"]].concat());
+    assert!(err.contains("checkpoint"), "{err}");
+    let err = fails(&[&args[..], &["--downscale", "0"]].concat());
+    assert!(err.contains("the training downscale factor must be at least 1"), "{err}");
+}

@@ -142,6 +142,22 @@ impl Camera {
         Ray { origin: self.center(), direction: d.normalize() }
     }
 
+    /// This camera at 1/`factor` of its size: pixel `(i, j)` of the smaller image covers the
+    /// `factor x factor` block at `(factor i, factor j)`. With pixel centres at +0.5 the
+    /// continuous pixel coordinates simply divide: `K' = diag(1/f, 1/f, 1) K` (no half-pixel
+    /// shift); the size is rounded down (the last incomplete block is dropped).
+    pub fn downscaled(&self, factor: u32) -> Camera {
+        let f = factor.max(1) as f64;
+        let mut camera = self.clone();
+        for c in 0..3 {
+            camera.k[(0, c)] /= f;
+            camera.k[(1, c)] /= f;
+        }
+        camera.width = self.width / factor.max(1);
+        camera.height = self.height / factor.max(1);
+        camera
+    }
+
     /// The world ray through the centre of pixel `(i, j)` (column `i`, row `j`).
     pub fn pixel_ray(&self, i: u32, j: u32) -> Ray {
         self.ray(i as f64 + 0.5, j as f64 + 0.5)
@@ -283,6 +299,23 @@ mod tests {
         let r = *Rotation3::from_euler_angles(0.3, -0.5, 0.2).matrix();
         let k = Matrix3::new(900.0, 0.5, 611.5, 0.0, 905.0, 515.0, 0.0, 0.0, 1.0);
         Camera::new(k, r, Vector3::new(0.1, -0.2, 3.0), 1224, 1024)
+    }
+    #[test]
+    fn a_downscaled_camera_sees_each_block_where_the_full_camera_sees_its_pixels() {
+        let full = camera();
+        for factor in [2u32, 4] {
+            let small = full.downscaled(factor);
+            assert_eq!((small.width, small.height), (1224 / factor, 1024 / factor));
+            let f = factor as f64;
+            // Pixel (i, j) of the small image is the block whose centre is ((i + 0.5) f, (j + 0.5) f).
+            for (i, j) in [(0u32, 0u32), (17, 250), (305, 3)] {
+                let (a, b) = (small.pixel_ray(i, j), full.ray((i as f64 + 0.5) * f, (j as f64 + 0.5) * f));
+                assert!((a.direction - b.direction).norm() < 1e-12 && (a.origin - b.origin).norm() < 1e-12);
+            }
+            let p = Point3::new(0.2, -0.1, 0.4);
+            let (a, b) = (small.project(&p).unwrap(), full.project(&p).unwrap());
+            assert!((a.coords * f - b.coords).norm() < 1e-9);
+        }
     }
 
     #[test]

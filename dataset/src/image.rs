@@ -151,3 +151,23 @@ impl Image<f32> {
         Some((p % self.width, p / self.width, c))
     }
 }
+
+impl Image<f32> {
+    /// The mean of each `factor x factor` block, channel by channel (the size rounded down): the
+    /// image a sensor of `factor` times larger pixels would record.
+    pub fn block_mean(&self, factor: usize) -> Image<f32> {
+        let f = factor.max(1);
+        let (w, h, c) = (self.width / f, self.height / f, self.channels);
+        let mut out = Image::new(w, h, c);
+        let norm = 1.0 / (f * f) as f32;
+        for y in 0..h {
+            for x in 0..w {
+                for ch in 0..c {
+                    let sum: f32 = (0..f * f).map(|k| self.pixel(x * f + k % f, y * f + k / f)[ch]).sum();
+                    out.pixel_mut(x, y)[ch] = sum * norm;
+                }
+            }
+        }
+        out
+    }
+}

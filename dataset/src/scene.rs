@@ -166,6 +166,38 @@ impl View {
         })
     }
 
+    /// This view at 1/`factor` of its size, for training at a lower resolution: the camera
+    /// scaled ([`Camera::downscaled`]), Stokes and polarizer images averaged over each block, the
+    /// mask set where at least half of its block is, the preview averaged; the AoP and DoP are
+    /// dropped (derived again from the averaged Stokes), and so is the ground truth (normals,
+    /// depth), which belongs to the full size.
+    pub fn downscaled(&self, factor: u32) -> View {
+        let f = factor.max(1) as usize;
+        let mut view = View::new(self.name.clone(), self.split, self.camera.downscaled(factor));
+        view.projection = self.projection.map(|mut p| {
+            for c in 0..4 {
+                p[(0, c)] /= f as f64;
+                p[(1, c)] /= f as f64;
+            }
+            p
+        });
+        view.stokes = self.stokes.as_ref().map(|s| Stokes {
+            s0: s.s0.block_mean(f),
+            s1: s.s1.block_mean(f),
+            s2: s.s2.block_mean(f),
+        });
+        view.mask = self
+            .mask
+            .as_ref()
+            .map(|m| m.map(|v| if v > 127 { 1.0 } else { 0.0 }).block_mean(f).map(|v| if v >= 0.5 { 255 } else { 0 }));
+        view.preview = self.preview.as_ref().map(|p| crate::visualize::downsample(p, f));
+        view.polarized = self.polarized.as_ref().map(|p| PolarizerImages {
+            scale: p.scale,
+            images: p.images.each_ref().map(|i| i.map(f32::from).block_mean(f).map(|v| v.round() as u16)),
+        });
+        view
+    }
+
     /// Check that every image matches the camera's size and holds sane values.
     pub fn validate(&self) -> Result<()> {
         let context = |e: Error| Error::invalid(format!("view {}: {e}", self.name));
@@ -265,6 +297,18 @@ impl Scene {
         self.views.iter().find(|v| v.name == name)
     }
 
+    /// The scene with every view at 1/`factor` of its size ([`View::downscaled`]); the mesh,
+    /// environment map and provenance are kept.
+    pub fn downscaled(&self, factor: u32) -> Scene {
+        Scene {
+            views: self.views.iter().map(|v| v.downscaled(factor)).collect(),
+            normalization: self.normalization,
+            mesh: self.mesh.clone(),
+            env_map: self.env_map.clone(),
+            metadata: self.metadata.clone(),
+        }
+    }
+
     /// Check every view, unique names, and the ground truth.
     pub fn validate(&self) -> Result<()> {
         let mut names = std::collections::BTreeSet::new();
@@ -292,5 +336,34 @@ impl Scene {
 impl Default for Scene {
     fn default() -> Self {
         Self::new()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix3, Vector3};
+
+    #[test]
+    fn a_downscaled_view_averages_stokes_over_blocks_and_keeps_majority_masks() {
+        let k = Matrix3::new(100.0, 0.0, 3.0, 0.0, 100.0, 2.0, 0.0, 0.0, 1.0);
+        let mut view = View::new("000", Split::Train, Camera::new(k, Matrix3::identity(), Vector3::z(), 6, 4));
+        let ramp = Image::from_vec(6, 4, 3, (0..72).map(|i| i as f32).collect()).unwrap();
+        view.stokes = Some(Stokes { s0: ramp.clone(), s1: ramp.map(|v| -v), s2: ramp.map(|v| 2.0 * v) });
+        // Block (0, 0) three quarters inside, block (1, 0) a quarter, block (2, 1) half.
+        let inside = [(0, 0), (1, 0), (0, 1), (2, 0), (4, 2), (5, 2)];
+        let mask = (0..24).map(|p| if inside.contains(&(p % 6, p / 6)) { 255 } else { 0 }).collect();
+        view.mask = Some(Image::from_vec(6, 4, 1, mask).unwrap());
+        view.projection = Some(view.projection_matrix());
+        let small = view.downscaled(2);
+        assert_eq!((small.camera.width, small.camera.height), (3, 2));
+        let s0 = &small.stokes.as_ref().unwrap().s0;
+        // Pixel (1, 1) averages full pixels (2..4, 2..4): indices 14, 15, 20, 21, channel 0.
+        let expected = [14.0, 15.0, 20.0, 21.0].map(|p: f32| 3.0 * p).iter().sum::<f32>() / 4.0;
+        assert_eq!(s0.pixel(1, 1)[0], expected);
+        assert_eq!(small.stokes.as_ref().unwrap().s2.pixel(1, 1)[0], 2.0 * expected);
+        assert_eq!(small.mask.as_ref().unwrap().data(), &[255, 0, 0, 0, 0, 255]);
+        assert_eq!(small.projection.unwrap().fixed_view::<3, 4>(0, 0), small.camera.projection());
+        assert!(small.validate().is_ok());
     }
 }

@@ -75,7 +75,7 @@ pub enum Error {
     #[error("the trained SDF has no zero crossing inside the unit sphere: no surface to extract")]
     NoSurface,
     /// A checkpoint of another run (other preset, iterations or switches).
-    #[error("{}: was written with other settings (preset, iterations or switches); resume with the same ones", path.display())]
+    #[error("{}: was written with other settings (preset, iterations, switches or downscale); resume with the same ones", path.display())]
     CheckpointSettings {
         /// The checkpoint.
         path: PathBuf,

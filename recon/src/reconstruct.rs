@@ -46,6 +46,9 @@ pub struct Options {
     /// Learn the specular lobe's polarization scale (default: the preset's;
     /// [`crate::model::Radiance::specular_polarization`]).
     pub learned_polarization: Option<bool>,
+    /// Train on the views at 1/`downscale` of their size (the official code trains RMVP3D at 2,
+    /// PANDORA at 4); outputs are written at the scene's size.
+    pub downscale: u32,
     /// Random seed.
     pub seed: u64,
     /// Train at most this many iterations in this call, then checkpoint and return without
@@ -72,6 +75,7 @@ impl Default for Options {
             margin: None,
             grid_level_decay: None,
             learned_polarization: None,
+            downscale: 1,
             seed: 0,
             stop_after: None,
             view_outputs: true,
@@ -94,6 +98,8 @@ impl Options {
             "the rays per iteration (batch) must be at least 1"
         } else if self.checkpoint_every == 0 {
             "the iterations between checkpoints must be at least 1"
+        } else if self.downscale == 0 {
+            "the training downscale factor must be at least 1"
         } else {
             return Ok(());
         };
@@ -107,6 +113,7 @@ impl Options {
         config.photometric = self.photometric;
         config.geometric = self.geometric;
         config.seed = self.seed;
+        config.downscale = self.downscale;
         if let Some(b) = self.batch_rays {
             config.batch_rays = b;
         }
@@ -148,7 +155,11 @@ pub fn reconstruct(
     check_device(options.mesh_device)?;
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let config = options.config();
-    let set = TrainingSet::from_scene(scene, config.margin)?;
+    let set = if config.downscale > 1 {
+        TrainingSet::from_scene(&scene.downscaled(config.downscale), config.margin)?
+    } else {
+        TrainingSet::from_scene(scene, config.margin)?
+    };
     let checkpoint = out.join(CHECKPOINT);
     let log_path = out.join(LOG);
     let mut trainer = if options.resume && checkpoint.exists() {

@@ -55,6 +55,14 @@ pub struct TrainConfig {
     pub anneal_every: u32,
     /// Random seed.
     pub seed: u64,
+    /// Training views at 1/`downscale` of their size (Stokes and masks averaged over blocks);
+    /// the outputs stay at the scene's size.
+    #[serde(default = "full_size")]
+    pub downscale: u32,
+}
+
+fn full_size() -> u32 {
+    1
 }
 
 /// Curvature weight of the fast and dense presets: measured on the evaluation set (issue 13,
@@ -122,6 +130,7 @@ impl TrainConfig {
             start_levels,
             anneal_every,
             seed: 0,
+            downscale: 1,
         }
     }
 }

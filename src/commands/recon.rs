@@ -12,7 +12,7 @@ use std::path::PathBuf;
 /// Arguments of `rmvp recon`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// Scene folder (NeRSP or rmvp layout) with Stokes images and masks.
+    /// Scene folder (any layout) with Stokes images and masks.
     scene: PathBuf,
     /// Output folder: mesh.ply, normals/, stokes/, comparison.png, log.jsonl, checkpoint.bin.
     #[arg(short, long)]
@@ -54,6 +54,11 @@ pub struct Args {
     /// Iterations between checkpoints.
     #[arg(long, default_value_t = Options::default().checkpoint_every)]
     checkpoint_every: u32,
+    /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the
+    /// intrinsics scaled); the outputs are written at the scene's size. The official code trains
+    /// RMVP3D at 2 (612x512), PANDORA at 4.
+    #[arg(long, default_value_t = Options::default().downscale)]
+    downscale: u32,
     /// Random seed.
     #[arg(long, default_value_t = Options::default().seed)]
     seed: u64,
@@ -76,6 +81,7 @@ pub fn run(args: Args) -> Result<()> {
         checkpoint_every: args.checkpoint_every.max(1),
         batch_rays: args.batch,
         learned_polarization: args.learned_polarization.then_some(true),
+        downscale: args.downscale,
         seed: args.seed,
         stop_after: args.stop_after,
         view_outputs: !args.mesh_only,

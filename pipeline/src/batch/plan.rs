@@ -67,6 +67,9 @@ pub struct Variant {
     /// Write the mesh alone (no normal maps, Stokes or comparison picture).
     #[serde(default)]
     pub mesh_only: bool,
+    /// Train at 1/N of the views' size (default: `rmvp recon`'s, full size).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub downscale: Option<u32>,
 }
 
 impl Variant {
@@ -86,6 +89,7 @@ impl Variant {
             seed,
             stop_after: None,
             view_outputs: !self.mesh_only,
+            downscale: self.downscale.unwrap_or(defaults.downscale),
             ..defaults
         }
     }
