@@ -144,19 +144,6 @@ impl Drop for Cluster {
     }
 }
 
-fn copy_dir(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy_dir(&entry.path(), &target);
-        } else {
-            std::fs::copy(entry.path(), target).unwrap();
-        }
-    }
-}
-
 fn table(dir: &Path) -> BatchTable {
     serde_json::from_str(&std::fs::read_to_string(dir.join("results.json")).unwrap()).unwrap()
 }
@@ -191,7 +178,7 @@ fn a_slurm_array_preempted_failed_resubmitted_gathered_as_locally() {
     // A damaged copy: the plan accepts it (a scene folder with its ground truth); its tasks
     // fail when they read it.
     let broken = work.join("broken");
-    copy_dir(&spot, &broken);
+    rmvp_testkit::copy_tree(&spot, &broken);
     let damaged = broken.join("s1/0002.npy");
     let good = std::fs::read(&damaged).unwrap();
     std::fs::write(&damaged, &good[..good.len() / 2]).unwrap();

@@ -4,9 +4,8 @@
 
 use rmvp_dataset::io::npy::{self, Array};
 use rmvp_dataset::Mesh;
-use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 /// A path as the `&str` an argument list needs.
@@ -21,36 +20,12 @@ const DEADLINE: Duration = Duration::from_secs(60);
 
 /// Run rmvp under the memory limit and the deadline; returns (success, stderr).
 fn run(args: &[&str]) -> (bool, String) {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_rmvp"));
-    command.args(args).stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::piped());
-    // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
-    unsafe {
-        command.pre_exec(|| {
-            let limit = libc::rlimit { rlim_cur: MEMORY_LIMIT, rlim_max: MEMORY_LIMIT };
-            if libc::setrlimit(libc::RLIMIT_DATA, &limit) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            Ok(())
-        });
-    }
     let started = Instant::now();
-    let mut child = command.spawn().unwrap();
-    let stderr = child.stderr.take().unwrap();
-    let text = std::thread::spawn(move || std::io::read_to_string(stderr).unwrap_or_default());
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        if started.elapsed() > DEADLINE {
-            child.kill().unwrap();
-            child.wait().unwrap();
-            panic!("rmvp {args:?} still ran after {DEADLINE:?}");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let stderr = text.join().unwrap();
-    eprintln!("rmvp {args:?} ({:.1} s): {}", started.elapsed().as_secs_f64(), stderr.trim());
-    (status.success(), stderr)
+    let mut command = Command::new(env!("CARGO_BIN_EXE_rmvp"));
+    let run = rmvp_testkit::run_limited(command.args(args), MEMORY_LIMIT, DEADLINE);
+    let status = run.status.unwrap_or_else(|| panic!("rmvp {args:?} still ran after {DEADLINE:?}"));
+    eprintln!("rmvp {args:?} ({:.1} s): {}", started.elapsed().as_secs_f64(), run.stderr.trim());
+    (status.success(), run.stderr)
 }
 
 /// Run rmvp, expect a refusal that says every one of `words`, once each where asked, and no
@@ -76,32 +51,9 @@ fn mkfifo(path: &Path) {
 
 /// A writable copy of the spot fixture.
 fn spot_copy(tmp: &Path) -> PathBuf {
-    fn copy(from: &Path, to: &Path) {
-        std::fs::create_dir_all(to).unwrap();
-        for entry in std::fs::read_dir(from).unwrap() {
-            let entry = entry.unwrap();
-            let target = to.join(entry.file_name());
-            if entry.file_type().unwrap().is_dir() {
-                copy(&entry.path(), &target);
-            } else {
-                std::fs::write(&target, std::fs::read(entry.path()).unwrap()).unwrap();
-            }
-        }
-    }
     let dir = tmp.join("spot");
-    copy(&rmvp_testkit::fixture("spot_nersp"), &dir);
+    rmvp_testkit::copy_tree(&rmvp_testkit::fixture("spot_nersp"), &dir);
     dir
-}
-
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &b in bytes {
-        crc ^= b as u32;
-        for _ in 0..8 {
-            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
-        }
-    }
-    !crc
 }
 
 /// A valid PNG whose header's size is replaced by `width x height` (with a correct CRC).
@@ -110,7 +62,7 @@ fn forged_png(from: &Path, width: u32, height: u32) -> Vec<u8> {
     assert_eq!(&bytes[12..16], b"IHDR");
     bytes[16..20].copy_from_slice(&width.to_be_bytes());
     bytes[20..24].copy_from_slice(&height.to_be_bytes());
-    let crc = crc32(&bytes[12..29]);
+    let crc = rmvp_testkit::crc32(&bytes[12..29]);
     bytes[29..33].copy_from_slice(&crc.to_be_bytes());
     bytes
 }

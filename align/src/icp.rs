@@ -256,14 +256,17 @@ impl Alignment {
 /// `out/aligned.ply` (the scan moved onto the target).
 pub fn align_files(scan: &Path, target: &Path, out: &Path, options: &IcpOptions) -> Result<Alignment> {
     let (scan_mesh, target_mesh) = (Mesh::read(scan)?, Mesh::read(target)?);
-    // Inputs that no similarity can be fitted to are refused naming their file, before ICP
-    // runs and before anything is written.
-    for (path, mesh) in [(scan, &scan_mesh), (target, &target_mesh)] {
-        if let Some(why) = degenerate(&mesh.positions) {
-            return Err(rmvp_dataset::Error::format(path, format!("{why}: nothing to align")).into());
-        }
-    }
-    let alignment = align(&scan_mesh, &target_mesh, options)?;
+    // Inputs that no similarity can be fitted to are refused (before ICP runs and before
+    // anything is written) naming their file.
+    let alignment = align(&scan_mesh, &target_mesh, options).map_err(|e| {
+        let (path, why) = match e {
+            Error::TooFewScanPoints { points } => (scan, format!("{points} points; alignment needs at least 10")),
+            Error::Degenerate { which: "scan", why } => (scan, why),
+            Error::Degenerate { which: "target", why } => (target, why),
+            other => return other,
+        };
+        rmvp_dataset::Error::format(path, format!("{why}: nothing to align")).into()
+    })?;
     let t = &alignment.transform;
     let finite = t.s.is_finite() && t.s > 0.0 && t.r.iter().chain(t.t.iter()).all(|v| v.is_finite());
     if !finite {

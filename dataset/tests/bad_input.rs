@@ -11,25 +11,9 @@ fn spot() -> PathBuf {
 
 /// A writable copy of the spot fixture.
 fn copy_of_spot() -> (tempfile::TempDir, PathBuf) {
-    fn copy(from: &Path, to: &Path) {
-        std::fs::create_dir_all(to).unwrap();
-        for e in std::fs::read_dir(from).unwrap() {
-            let p = e.unwrap().path();
-            let target = to.join(p.file_name().unwrap());
-            if p.is_dir() {
-                copy(&p, &target);
-            } else {
-                std::fs::copy(&p, &target).unwrap();
-                let mut perms = std::fs::metadata(&target).unwrap().permissions();
-                #[allow(clippy::permissions_set_readonly_false)]
-                perms.set_readonly(false);
-                std::fs::set_permissions(&target, perms).unwrap();
-            }
-        }
-    }
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("spot");
-    copy(&spot(), &dir);
+    rmvp_testkit::copy_tree(&spot(), &dir);
     (tmp, dir)
 }
 

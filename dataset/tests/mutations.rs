@@ -9,10 +9,8 @@ use rmvp_dataset::layout::nersp;
 use rmvp_dataset::rng::Rng;
 use rmvp_dataset::session::SessionManifest;
 use rmvp_dataset::Mesh;
-use std::io::{BufRead, BufReader};
-use std::os::unix::process::CommandExt;
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 /// Mutations per family.
@@ -37,21 +35,10 @@ struct Family {
 
 fn no_fixup(_: &mut [u8]) {}
 
-fn crc32(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &b in bytes {
-        crc ^= b as u32;
-        for _ in 0..8 {
-            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
-        }
-    }
-    !crc
-}
-
 /// A correct checksum for a PNG's header chunk, whatever its fields now say.
 fn png_header_crc(bytes: &mut [u8]) {
     if bytes.len() >= 33 && &bytes[12..16] == b"IHDR" {
-        let crc = crc32(&bytes[12..29]);
+        let crc = rmvp_testkit::crc32(&bytes[12..29]);
         bytes[29..33].copy_from_slice(&crc.to_be_bytes());
     }
 }
@@ -295,38 +282,13 @@ fn run_family(name: &str) {
     let test = format!("{}_family", name.replace('-', "_"));
     let mut command = Command::new(std::env::current_exe().unwrap());
     command.args([test.as_str(), "--exact", "--nocapture", "--test-threads=1"]).env(CHILD, name);
-    command.stdout(Stdio::piped()).stderr(Stdio::piped());
-    // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
-    unsafe {
-        command.pre_exec(|| {
-            let limit = libc::rlimit { rlim_cur: MEMORY_LIMIT, rlim_max: MEMORY_LIMIT };
-            if libc::setrlimit(libc::RLIMIT_DATA, &limit) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            Ok(())
-        });
-    }
     let started = Instant::now();
-    let mut child = command.spawn().unwrap();
-    let stdout = child.stdout.take().unwrap();
-    let lines = std::thread::spawn(move || BufReader::new(stdout).lines().map_while(Result::ok).collect::<Vec<_>>());
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break Some(status);
-        }
-        if started.elapsed() > DEADLINE {
-            child.kill().unwrap();
-            child.wait().unwrap();
-            break None;
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let lines = lines.join().unwrap();
-    let mut stderr = String::new();
-    std::io::Read::read_to_string(&mut child.stderr.take().unwrap(), &mut stderr).unwrap();
-    let last = lines.iter().rev().find(|l| l.starts_with("mutation ")).cloned().unwrap_or_default();
-    let summary = lines.iter().find(|l| l.starts_with("summary ")).cloned();
-    match status {
+    let run = rmvp_testkit::run_limited(&mut command, MEMORY_LIMIT, DEADLINE);
+    let lines: Vec<&str> = run.stdout.lines().collect();
+    let last = lines.iter().rev().find(|l| l.starts_with("mutation ")).copied().unwrap_or_default();
+    let summary = lines.iter().find(|l| l.starts_with("summary ")).copied();
+    let stderr = &run.stderr;
+    match run.status {
         None => panic!("{name}: hung past {DEADLINE:?} at {last}"),
         Some(s) if !s.success() => panic!("{name}: the reader failed ({s}) at {last}\n{stderr}"),
         Some(_) => {}

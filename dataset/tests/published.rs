@@ -4,21 +4,6 @@
 use rmvp_dataset::io::{npy, png};
 use rmvp_dataset::layout::{read_scene, write_scene, Layout};
 use rmvp_dataset::{Scene, Split};
-use std::path::Path;
-
-/// A writable copy of a fixture scene.
-fn copy(from: &Path, to: &Path) {
-    std::fs::create_dir_all(to).unwrap();
-    for entry in std::fs::read_dir(from).unwrap() {
-        let entry = entry.unwrap();
-        let target = to.join(entry.file_name());
-        if entry.file_type().unwrap().is_dir() {
-            copy(&entry.path(), &target);
-        } else {
-            std::fs::write(&target, std::fs::read(entry.path()).unwrap()).unwrap();
-        }
-    }
-}
 
 #[test]
 fn a_nersp_scene_without_mask_folder_takes_its_masks_from_the_azimuth_alpha() {
@@ -26,7 +11,7 @@ fn a_nersp_scene_without_mask_folder_takes_its_masks_from_the_azimuth_alpha() {
     let original = read_scene(&source).unwrap();
     let tmp = tempfile::tempdir().unwrap();
     let scene = tmp.path().join("spot");
-    copy(&source, &scene);
+    rmvp_testkit::copy_tree(&source, &scene);
     std::fs::remove_dir_all(scene.join("mask")).unwrap();
     let read = read_scene(&scene).unwrap();
     let train: Vec<_> = original.train_views().collect();

@@ -39,7 +39,6 @@ pub fn read_panorama(path: &Path) -> Result<Image<f32>> {
             let (w, h) = decoder.dimensions().ok_or_else(|| bad("no image size".into()))?;
             input::check_pixels(path, w as u64, h as u64)?;
             let data = decoder.decode().map_err(|e| bad(format!("not a readable JPEG file: {e:?}")))?;
-            let (w, h) = decoder.dimensions().ok_or_else(|| bad("no image size".into()))?;
             Image::from_vec(w, h, 3, data.iter().map(|&v| srgb_to_linear(v as f32 / 255.0)).collect())
                 .map_err(|e| bad(e.to_string()))?
         }

@@ -30,3 +30,76 @@ pub fn fixture_scenes() -> Vec<PathBuf> {
     assert!(scenes.len() >= 2, "expected the spot and bunny fixtures in {}", root.display());
     scenes
 }
+
+/// Copy the folder tree `from` into `to` (created), every file writable: the fixtures are
+/// read-only, and tests damage their copies.
+pub fn copy_tree(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for entry in std::fs::read_dir(from).unwrap() {
+        let entry = entry.unwrap();
+        let target = to.join(entry.file_name());
+        if entry.file_type().unwrap().is_dir() {
+            copy_tree(&entry.path(), &target);
+        } else {
+            std::fs::write(&target, std::fs::read(entry.path()).unwrap()).unwrap();
+        }
+    }
+}
+
+/// CRC-32 as PNG computes it over a chunk's type and data.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+        }
+    }
+    !crc
+}
+
+/// What a process run by [`run_limited`] did.
+pub struct Limited {
+    /// Its exit status; `None` when it was killed at the deadline.
+    pub status: Option<std::process::ExitStatus>,
+    /// Its standard output.
+    pub stdout: String,
+    /// Its standard error.
+    pub stderr: String,
+}
+
+/// Run `command` with at most `memory` bytes of data memory (`RLIMIT_DATA`: an allocation past
+/// it aborts the process) and kill it if it runs past `deadline`.
+pub fn run_limited(command: &mut std::process::Command, memory: u64, deadline: std::time::Duration) -> Limited {
+    use std::os::unix::process::CommandExt;
+    use std::process::Stdio;
+    command.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+    // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
+    unsafe {
+        command.pre_exec(move || {
+            let limit = libc::rlimit { rlim_cur: memory, rlim_max: memory };
+            if libc::setrlimit(libc::RLIMIT_DATA, &limit) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let started = std::time::Instant::now();
+    let mut child = command.spawn().unwrap();
+    // Both streams drained while the process runs, so that neither can fill up and block it.
+    let (out, err) = (child.stdout.take().unwrap(), child.stderr.take().unwrap());
+    let stdout = std::thread::spawn(move || std::io::read_to_string(out).unwrap_or_default());
+    let stderr = std::thread::spawn(move || std::io::read_to_string(err).unwrap_or_default());
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break Some(status);
+        }
+        if started.elapsed() > deadline {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            break None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    Limited { status, stdout: stdout.join().unwrap(), stderr: stderr.join().unwrap() }
+}

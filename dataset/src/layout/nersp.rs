@@ -358,13 +358,24 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
     write_bytes_atomically(&dir.join(GT_CAMERAS), text.as_bytes())?;
 
     // The index file last: a folder without it is an incomplete write.
-    let mut arrays = Vec::new();
-    for (i, view) in train.iter().enumerate() {
-        let matrix = |m: Matrix4<f64>| npy::Array { shape: vec![4, 4], data: m.transpose().as_slice().to_vec() };
-        arrays.push((format!("world_mat_{i}"), matrix(view.projection_matrix())));
-        arrays.push((format!("scale_mat_{i}"), matrix(scene.normalization)));
-    }
-    npy::write_npz(&dir.join(CAMERAS), &arrays)
+    let keyed = train.iter().enumerate().map(|(i, view)| (i.to_string(), view.projection_matrix()));
+    write_cameras(&dir.join(CAMERAS), keyed, &scene.normalization)
+}
+
+/// Write a camera file: `world_mat_<key>` and `scale_mat_<key>` (the scene's normalisation) for
+/// each `(key, projection)`, row-major as numpy saves them.
+pub(crate) fn write_cameras(
+    path: &Path,
+    keyed: impl Iterator<Item = (String, Matrix4<f64>)>,
+    normalization: &Matrix4<f64>,
+) -> Result<()> {
+    let matrix = |m: &Matrix4<f64>| npy::Array { shape: vec![4, 4], data: m.transpose().as_slice().to_vec() };
+    let arrays: Vec<(String, npy::Array<f64>)> = keyed
+        .flat_map(|(key, projection)| {
+            [(format!("world_mat_{key}"), matrix(&projection)), (format!("scale_mat_{key}"), matrix(normalization))]
+        })
+        .collect();
+    npy::write_npz(path, &arrays)
 }
 
 fn write_train_view(dir: &Path, i: usize, view: &View) -> Result<()> {

@@ -14,11 +14,11 @@
 //! `01`, `02`, ...; RGBE keeps about 1 % relative precision, and a Stokes vector whose `S0 + S1`
 //! or `S0 + S2` is negative (beyond full polarization, from noise) is clamped to 0 there.
 
-use super::nersp::{cameras_by_keys, read_camera_arrays};
+use super::nersp::{cameras_by_keys, read_camera_arrays, write_cameras};
 use crate::io::hdr::{read_hdr, write_hdr};
-use crate::io::{npy, png};
+use crate::io::png;
 use crate::{visualize, Camera, Error, Image, Result, Scene, Split, Stokes, View};
-use nalgebra::{Matrix3x4, Matrix4};
+use nalgebra::Matrix3x4;
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -129,11 +129,6 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
         let preview = view.preview.clone().unwrap_or_else(|| visualize::preview(&stokes.s0));
         png::write_png_u8(&dir.join("images").join(format!("{}.png", stem(i))), &preview)
     })?;
-    let mut arrays = Vec::new();
-    for (i, view) in views.iter().enumerate() {
-        let matrix = |m: Matrix4<f64>| npy::Array { shape: vec![4, 4], data: m.transpose().as_slice().to_vec() };
-        arrays.push((format!("world_mat_{}", stem(i)), matrix(view.projection_matrix())));
-        arrays.push((format!("scale_mat_{}", stem(i)), matrix(scene.normalization)));
-    }
-    npy::write_npz(&dir.join(CAMERAS), &arrays)
+    let keyed = views.iter().enumerate().map(|(i, view)| (stem(i), view.projection_matrix()));
+    write_cameras(&dir.join(CAMERAS), keyed, &scene.normalization)
 }

@@ -15,11 +15,11 @@
 //! back as `000`, `001`, ... and every view is a training view (the release's split is its
 //! users' choice). We write 0-based keys and `mask/`.
 
-use super::nersp::{cameras_by_keys, read_camera_arrays};
+use super::nersp::{cameras_by_keys, read_camera_arrays, write_cameras};
 use crate::io::{npy, png};
 use crate::layout::{array_from_image, image_from_array};
 use crate::{visualize, Camera, Error, Result, Scene, Split, Stokes, View};
-use nalgebra::{Matrix3x4, Matrix4};
+use nalgebra::Matrix3x4;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 
@@ -66,13 +66,8 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<()> {
         let preview = view.preview.clone().unwrap_or_else(|| visualize::preview(&stokes.s0));
         png::write_png_u8(&file("image", i, "png"), &preview)
     })?;
-    let mut arrays = Vec::new();
-    for (i, view) in views.iter().enumerate() {
-        let matrix = |m: Matrix4<f64>| npy::Array { shape: vec![4, 4], data: m.transpose().as_slice().to_vec() };
-        arrays.push((format!("world_mat_{i}"), matrix(view.projection_matrix())));
-        arrays.push((format!("scale_mat_{i}"), matrix(scene.normalization)));
-    }
-    npy::write_npz(&dir.join(CAMERAS), &arrays)
+    let keyed = views.iter().enumerate().map(|(i, view)| (i.to_string(), view.projection_matrix()));
+    write_cameras(&dir.join(CAMERAS), keyed, &scene.normalization)
 }
 
 /// Read an RMVP3D object folder.
@@ -139,7 +134,7 @@ pub fn read(dir: &Path) -> Result<Scene> {
 mod tests {
     use super::*;
     use crate::Image;
-    use nalgebra::{Matrix3, Vector3};
+    use nalgebra::{Matrix3, Matrix4, Vector3};
 
     fn scene() -> Scene {
         let mut scene = Scene::new();
