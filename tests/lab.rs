@@ -331,6 +331,7 @@ fn each_step_refuses_bad_input_by_name_and_leaves_the_session_as_it_was() {
         images: Vec::new(),
         rejected: Vec::new(),
         board: Default::default(),
+        warnings: Vec::new(),
     };
     let camera = tmp.path().join("camera.json");
     calibration.write(&camera).unwrap();

@@ -18,6 +18,9 @@ pub enum Error {
     /// Images of different sizes in one calibration.
     #[error("images of different sizes cannot be calibrated together: {0}")]
     MixedSizes(String),
+    /// Pictures whose files name different cameras or focal lengths.
+    #[error("pictures from different cameras cannot be calibrated together: {0}")]
+    MixedCameras(String),
     /// Too few images where the board was found.
     #[error("{usable} image(s) show the board well enough, {needed} are needed; left out: {rejected}")]
     TooFewImages {

@@ -82,6 +82,9 @@ pub struct CameraCalibration {
     pub rejected: Vec<Rejected>,
     /// The board.
     pub board: BoardSpec,
+    /// What deserves a look before the calibration is trusted ([`error_clusters`]).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 impl CameraCalibration {
@@ -186,7 +189,7 @@ pub fn calibrate(
     )?;
     let k = Matrix3::from_fn(|i, j| *camera.at_2d::<f64>(i as i32, j as i32).expect("3x3"));
     let d: Vec<f64> = (0..5).map(|i| *coefficients.at::<f64>(i).expect("5 coefficients")).collect();
-    let images = used
+    let images: Vec<ImageResidual> = used
         .iter()
         .enumerate()
         .map(|(v, (name, detection))| ImageResidual {
@@ -195,6 +198,7 @@ pub fn calibrate(
             rms_px: *per_view.at::<f64>(v as i32).expect("one error per view"),
         })
         .collect();
+    let warnings = error_clusters(&images).into_iter().collect();
     let calibration = CameraCalibration {
         k: matrix_rows(&k),
         distortion: Distortion { k1: d[0], k2: d[1], p1: d[2], p2: d[3], k3: d[4] },
@@ -205,8 +209,43 @@ pub fn calibrate(
         images,
         rejected,
         board: board.spec().clone(),
+        warnings,
     };
     Ok(CalibrationRun { calibration, detections: used.into_iter().map(|(_, d)| d).collect() })
+}
+
+/// Per-image errors this many times the others' at the widest gap between them make two
+/// clusters (and the gap must be at least [`CLUSTER_GAP_PX`]).
+pub const CLUSTER_RATIO: f64 = 2.0;
+/// The least gap (pixels) between two clusters of per-image errors: below it, both are within
+/// what corner detection alone scatters.
+pub const CLUSTER_GAP_PX: f64 = 0.1;
+
+/// A warning when the per-image errors split into two clusters: sorted, their widest gap (by
+/// ratio) puts the images above it at [`CLUSTER_RATIO`] times or more the error of those below
+/// and at least [`CLUSTER_GAP_PX`] further. One camera, one focus and a rigid board give errors
+/// of one population; two clusters mean a second camera or zoom, a refocused lens, a board that
+/// bent or moved during an exposure, or a wrong detection.
+pub fn error_clusters(images: &[ImageResidual]) -> Option<String> {
+    let mut sorted: Vec<&ImageResidual> = images.iter().collect();
+    sorted.sort_by(|a, b| a.rms_px.total_cmp(&b.rms_px));
+    let (split, ratio) = (1..sorted.len())
+        .map(|k| (k, sorted[k].rms_px / sorted[k - 1].rms_px.max(1e-12)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    let (low, high) = sorted.split_at(split);
+    let (low_max, high_min) = (low[low.len() - 1].rms_px, high[0].rms_px);
+    if ratio < CLUSTER_RATIO || high_min - low_max < CLUSTER_GAP_PX {
+        return None;
+    }
+    let names: Vec<&str> = high.iter().map(|i| i.name.as_str()).collect();
+    Some(format!(
+        "the per-image errors fall into two groups: {} at {high_min:.3}-{:.3} px against {:.3}-{low_max:.3} px for \
+         the other {}: another camera, zoom or focus, a board that bent or moved, or a wrong detection?",
+        names.join(", "),
+        high[high.len() - 1].rms_px,
+        low[0].rms_px,
+        low.len()
+    ))
 }
 
 /// The largest angle (degrees) between the board's vanishing lines of two images: zero when

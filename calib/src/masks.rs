@@ -8,9 +8,9 @@
 //!   background plates are given, else from the `threshold` masks (a band around the first
 //!   guess is left to it);
 //! - `mesh`: a mesh in the poses' world frame, ray cast in every posed view;
-//! - `folder`: hand-made masks (`<view>.png`).
+//! - `folder`: hand-made masks (`<view>.png`, or JPEG or TIFF; white is the object).
 //!
-//! Hand-made corrections (`<view>.png` in a corrections folder, as PANDORA keeps
+//! Hand-made corrections (`<view>.png`, JPEG or TIFF, in a corrections folder, as PANDORA keeps
 //! `mask_corrections/`) replace any view's mask. Masks are kept in the session (`masks/`) with a
 //! report of each view's area and a contact sheet of the masks over S0.
 
@@ -22,6 +22,7 @@ use opencv::imgproc;
 use opencv::prelude::*;
 use rayon::prelude::*;
 use rmvp_dataset::io::json::{read_json, write_json};
+use rmvp_dataset::io::picture::{find_picture, read_picture};
 use rmvp_dataset::io::png;
 use rmvp_dataset::session::SessionManifest;
 use rmvp_dataset::visualize::{contact_sheet, downsample, preview, quantile};
@@ -406,13 +407,16 @@ pub fn make_masks(dir: &Path, options: &MaskOptions, output: &Path) -> Result<Ma
                     geometry_maps(object, &camera).mask
                 }
                 MaskMethod::Folder => {
-                    png::read_png_u8(&need(&options.folder, "folder")?.join(format!("{}.png", view.name)))?.channel(0)
+                    let folder = need(&options.folder, "folder")?;
+                    let path = find_picture(&folder, &view.name).ok_or_else(|| {
+                        Error::MaskInput(format!("{} has no picture of view {}", folder.display(), view.name))
+                    })?;
+                    read_picture(&path)?.pixels.to_mask()
                 }
             };
-            let correction =
-                options.corrections.as_ref().map(|c| c.join(format!("{}.png", view.name))).filter(|p| p.is_file());
+            let correction = options.corrections.as_ref().and_then(|c| find_picture(c, &view.name));
             let (mask, corrected) = match correction {
-                Some(path) => (png::read_png_u8(&path)?.channel(0).map(|v| if v > 127 { 255 } else { 0 }), true),
+                Some(path) => (read_picture(&path)?.pixels.to_mask(), true),
                 None => (mask, false),
             };
             if mask.size() != stokes.s0.size() {

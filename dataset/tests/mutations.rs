@@ -4,7 +4,7 @@
 //! a hang or a panic fails the test and names the mutation. A mutated file must be refused with
 //! an error that names it, or read: never a panic, never more memory, never a hang.
 
-use rmvp_dataset::io::{exr, npy, png};
+use rmvp_dataset::io::{exr, npy, picture, png};
 use rmvp_dataset::layout::nersp;
 use rmvp_dataset::rng::Rng;
 use rmvp_dataset::session::SessionManifest;
@@ -75,6 +75,22 @@ fn stl_seed(_: &Path) -> Vec<u8> {
     bytes
 }
 
+/// The spot's S0 preview as a picture file of `format` (a JPEG with an EXIF block).
+fn picture_seed(format: image::ImageFormat) -> Vec<u8> {
+    use image::ImageEncoder;
+    let picture = image::load_from_memory(&spot("image/0000.png")).unwrap().into_rgb8();
+    let mut bytes = Vec::new();
+    if format == image::ImageFormat::Jpeg {
+        let mut encoder = image::codecs::jpeg::JpegEncoder::new(&mut bytes);
+        encoder.set_exif_metadata(rmvp_testkit::exif_block("Acme", "X100 Pro", 35)).unwrap();
+        let (w, h) = picture.dimensions();
+        encoder.write_image(picture.as_raw(), w, h, image::ExtendedColorType::Rgb8).unwrap();
+    } else {
+        picture.write_to(&mut std::io::Cursor::new(&mut bytes), format).unwrap();
+    }
+    bytes
+}
+
 fn families() -> Vec<Family> {
     vec![
         Family {
@@ -124,6 +140,20 @@ fn families() -> Vec<Family> {
             file_name: "m.obj",
             seed: |d| small_mesh(d, "seed.obj"),
             read: |p| Mesh::read(p).map(drop),
+            fixup: no_fixup,
+        },
+        Family {
+            name: "jpeg",
+            file_name: "m.jpg",
+            seed: |_| picture_seed(image::ImageFormat::Jpeg),
+            read: |p| picture::read_picture(p).map(drop),
+            fixup: no_fixup,
+        },
+        Family {
+            name: "tiff",
+            file_name: "m.tif",
+            seed: |_| picture_seed(image::ImageFormat::Tiff),
+            read: |p| picture::read_picture(p).map(drop),
             fixup: no_fixup,
         },
         Family { name: "stl", file_name: "m.stl", seed: stl_seed, read: |p| Mesh::read(p).map(drop), fixup: no_fixup },
@@ -301,6 +331,16 @@ fn run_family(name: &str) {
 #[test]
 fn png_family() {
     run_family("png");
+}
+
+#[test]
+fn jpeg_family() {
+    run_family("jpeg");
+}
+
+#[test]
+fn tiff_family() {
+    run_family("tiff");
 }
 
 #[test]

@@ -11,39 +11,20 @@
 
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Rotation3, Vector3};
-use rmvp_dataset::io::{hdr, input, png, read_linear};
-use rmvp_dataset::visualize::srgb_to_linear;
+use rmvp_dataset::io::picture::{is_picture, read_picture};
 use rmvp_dataset::Image;
 use rmvp_render::EnvMap;
 use std::path::Path;
 
-/// A panorama read from `path` as linear RGB: EXR and HDR as stored, 16-bit PNG as linear
-/// counts, 8-bit PNG and JPEG decoded from sRGB. It must be equirectangular (width twice the
-/// height, within a pixel).
+/// A panorama read from `path` as linear RGB ([`read_picture`]'s rule: EXR, HDR, 16-bit PNG and
+/// TIFF as stored, 8-bit PNG, JPEG and TIFF decoded from sRGB). It must be equirectangular (width
+/// twice the height, within a pixel).
 pub fn read_panorama(path: &Path) -> Result<Image<f32>> {
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
     let bad = |why: String| Error::Panorama { path: path.to_path_buf(), why };
-    let image = match ext.as_str() {
-        "exr" => read_linear(path)?,
-        "png" => match png::read_png(path)? {
-            png::PngImage::U8(i) => i.map(|v| srgb_to_linear(v as f32 / 255.0)),
-            png::PngImage::U16(i) => i.map(|v| v as f32 / 65535.0),
-        },
-        "hdr" => hdr::read_hdr(path)?,
-        "jpg" | "jpeg" => {
-            let bytes = input::read_bytes(path)?;
-            let options = zune_jpeg::zune_core::options::DecoderOptions::default()
-                .jpeg_set_out_colorspace(zune_jpeg::zune_core::colorspace::ColorSpace::RGB);
-            let mut decoder = zune_jpeg::JpegDecoder::new_with_options(&bytes, options);
-            decoder.decode_headers().map_err(|e| bad(format!("not a readable JPEG file: {e:?}")))?;
-            let (w, h) = decoder.dimensions().ok_or_else(|| bad("no image size".into()))?;
-            input::check_pixels(path, w as u64, h as u64)?;
-            let data = decoder.decode().map_err(|e| bad(format!("not a readable JPEG file: {e:?}")))?;
-            Image::from_vec(w, h, 3, data.iter().map(|&v| srgb_to_linear(v as f32 / 255.0)).collect())
-                .map_err(|e| bad(e.to_string()))?
-        }
-        other => return Err(bad(format!("unknown panorama format {other:?} (EXR, HDR, PNG or JPEG)"))),
-    };
+    if !is_picture(path) {
+        return Err(bad("unknown panorama format (EXR, HDR, PNG, JPEG or TIFF)".into()));
+    }
+    let image = read_picture(path)?.pixels.into_linear();
     let (w, h) = (image.width(), image.height());
     if image.channels() < 3 {
         return Err(bad(format!("{} channel(s); an RGB panorama is needed", image.channels())));
@@ -102,7 +83,7 @@ mod tests {
     fn a_panorama_of_the_wrong_aspect_is_refused_by_name() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("square.png");
-        png::write_png_u8(&path, &Image::new(64, 64, 3)).unwrap();
+        rmvp_dataset::io::png::write_png_u8(&path, &Image::new(64, 64, 3)).unwrap();
         let err = read_panorama(&path).unwrap_err();
         assert!(matches!(err, Error::Panorama { .. }), "{err}");
         assert!(err.to_string().contains("square.png") && err.to_string().contains("64x64"), "{err}");

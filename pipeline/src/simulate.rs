@@ -15,12 +15,11 @@
 use crate::{Error, Result};
 use rmvp_capture::sensor::{SensorModel, SensorRecord, SENSOR_FILE};
 use rmvp_capture::PixelFormat;
+use rmvp_dataset::io::picture::read_picture;
 use rmvp_dataset::io::{exr, png};
 use rmvp_dataset::layout::{write_scene, Layout};
 use rmvp_dataset::progress::progress_bar;
-use rmvp_dataset::visualize::{
-    aop_picture, contact_sheet, downsample, normal_picture, preview, quantile, srgb_to_linear,
-};
+use rmvp_dataset::visualize::{aop_picture, contact_sheet, downsample, normal_picture, preview, quantile};
 use rmvp_dataset::{Image, Mesh, Scene, Split};
 use rmvp_render::envmap::procedural_image;
 use rmvp_render::pbrdf::{Interface, Lobes};
@@ -251,14 +250,7 @@ fn write_raw_frames(scene: &Scene, dir: &Path, seed: u64, progress: bool) -> Res
     Ok(())
 }
 
-/// A linear RGB texture: EXR channels R, G, B as they are; PNG samples sRGB-decoded.
+/// A linear RGB texture ([`read_picture`]'s rule: 8-bit samples sRGB-decoded, the others linear).
 fn read_texture(path: &Path) -> Result<Image<f32>> {
-    if path.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr")) {
-        return Ok(exr::read_exr(path, &["R", "G", "B"])?);
-    }
-    let linear = match png::read_png(path)? {
-        png::PngImage::U8(i) => i.map(|v| srgb_to_linear(v as f32 / 255.0)),
-        png::PngImage::U16(i) => i.map(|v| srgb_to_linear(v as f32 / 65535.0)),
-    };
-    Ok(linear)
+    Ok(read_picture(path)?.pixels.into_linear())
 }

@@ -9,7 +9,8 @@ use std::path::PathBuf;
 /// Arguments of `rmvp calibrate`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// A capture session of the board (each view's S0) or image files (PNG, EXR).
+    /// A capture session of the board (each view's S0) or pictures (PNG, JPEG, TIFF, EXR, HDR;
+    /// 8-bit files taken as the sRGB pictures they are, the others as linear light).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// The calibration file to write (JSON); its coverage picture goes beside it.
@@ -60,6 +61,9 @@ pub fn run(args: Args) -> Result<()> {
     }
     for r in &c.rejected {
         println!("  {:<24} left out: {}", r.name, r.reason);
+    }
+    for warning in &c.warnings {
+        eprintln!("warning: {warning}");
     }
     println!("wrote {} and {}", args.output.display(), coverage_path(&args.output).display());
     Ok(())

@@ -38,10 +38,10 @@ pub struct Args {
     /// mesh: a mesh in the session's pose frame (the session needs `poses.json`).
     #[arg(long, required_if_eq("method", "mesh"))]
     mesh: Option<PathBuf>,
-    /// folder: the hand-made masks (`<view>.png`).
+    /// folder: the hand-made masks (`<view>.png`, `.jpg` or `.tif`; white is the object).
     #[arg(long = "from", required_if_eq("method", "folder"))]
     folder: Option<PathBuf>,
-    /// Hand-made masks (`<view>.png`) that replace those of their views.
+    /// Hand-made masks (`<view>.png`, `.jpg` or `.tif`) that replace those of their views.
     #[arg(long)]
     corrections: Option<PathBuf>,
 }

@@ -31,6 +31,48 @@ pub fn fixture_scenes() -> Vec<PathBuf> {
     scenes
 }
 
+/// OpenCV's chessboard photographs (`left01.jpg` ... `left14.jpg`: 13 pictures of a board of
+/// 10x7 squares, 9x6 inner corners, from a 640x480 camera), sorted, as
+/// `scripts/fetch-test-photographs.sh` (run by `./run test`) takes them out of Debian's
+/// opencv-doc package.
+pub fn opencv_photographs() -> Vec<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/photographs/opencv");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .unwrap_or_else(|e| panic!("{} ({e}): run scripts/fetch-test-photographs.sh", dir.display()))
+        .map(|e| e.expect("readable folder").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "jpg"))
+        .collect();
+    files.sort();
+    assert_eq!(files.len(), 13, "OpenCV's 13 chessboard photographs in {}", dir.display());
+    files
+}
+
+/// An EXIF block (big-endian TIFF, as a JPEG's APP1 segment carries it after `Exif\0\0`) naming
+/// a camera: `make` and `model` (each longer than 4 bytes with its terminator) in the first
+/// directory, the focal length in the Exif directory it points to.
+pub fn exif_block(make: &str, model: &str, focal_mm: u32) -> Vec<u8> {
+    assert!(make.len() >= 4 && model.len() >= 4, "short strings are stored inline; not built here");
+    let entry = |tag: u16, kind: u16, count: u32, value: u32| {
+        [tag.to_be_bytes().as_slice(), &kind.to_be_bytes(), &count.to_be_bytes(), &value.to_be_bytes()].concat()
+    };
+    let (make_at, model_at) = (8 + 2 + 3 * 12 + 4, 8 + 2 + 3 * 12 + 4 + make.len() as u32 + 1);
+    let exif_at = model_at + model.len() as u32 + 1;
+    let mut exif = b"MM\0\x2a\0\0\0\x08\0\x03".to_vec();
+    exif.extend(entry(0x010f, 2, make.len() as u32 + 1, make_at));
+    exif.extend(entry(0x0110, 2, model.len() as u32 + 1, model_at));
+    exif.extend(entry(0x8769, 4, 1, exif_at));
+    exif.extend([0; 4]);
+    for text in [make, model] {
+        exif.extend(text.as_bytes());
+        exif.push(0);
+    }
+    exif.extend([0, 1]);
+    exif.extend(entry(0x920a, 5, 1, exif_at + 2 + 12 + 4));
+    exif.extend([0; 4]);
+    exif.extend([focal_mm.to_be_bytes(), 1u32.to_be_bytes()].concat());
+    exif
+}
+
 /// Copy the folder tree `from` into `to` (created), every file writable: the fixtures are
 /// read-only, and tests damage their copies.
 pub fn copy_tree(from: &Path, to: &Path) {

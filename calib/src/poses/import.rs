@@ -1,5 +1,7 @@
 //! Poses imported from another tool: a COLMAP model (a folder with `images.bin` or
-//! `images.txt`; images matched to views by file stem), an IDR/NeRSP `cameras.npz` (the i-th
+//! `images.txt`; images matched to views by file stem; the models a default run writes,
+//! SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL and OPENCV, their distortion kept in the
+//! cameras for `dataset build` to undistort the views), an IDR/NeRSP `cameras.npz` (the i-th
 //! `world_mat` is the session's i-th view) or a nerfstudio `transforms.json` (frames matched by
 //! file stem). The world frame is the source's.
 
@@ -27,15 +29,30 @@ pub fn import_poses(dir: &Path, source: &Path, min_views: usize) -> Result<PoseS
     let extension = source.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     // Named cameras, each with its residual and point count (where the source has points).
     type Imported = (Vec<(String, Camera)>, Vec<(f64, usize)>, String);
+    let view_size = || -> Result<(usize, usize)> {
+        let first = manifest.views.first().ok_or_else(|| DataError::format(dir, "the session has no views"))?;
+        Ok(read_view_stokes(dir, first)?.s0.size())
+    };
     let (cameras, residuals, world): Imported = if source.is_dir() {
         let model = ColmapModel::read(source)?;
         let cameras: Vec<(String, Camera)> = model.cameras(source)?.into_iter().map(|(n, c)| (stem(&n), c)).collect();
+        let size = view_size()?;
+        if let Some((name, c)) = cameras.iter().find(|(_, c)| (c.width as usize, c.height as usize) != size) {
+            return Err(DataError::format(
+                source,
+                format!(
+                    "image {name} was {}x{} pixels in COLMAP, the session's views are {}x{}: run COLMAP on the views at \
+                     their size",
+                    c.width, c.height, size.0, size.1
+                ),
+            )
+            .into());
+        }
         let residuals = cameras.iter().enumerate().map(|(i, (_, c))| model.residual(i, c)).collect();
         (cameras, residuals, format!("the COLMAP model's ({})", source.display()))
     } else if extension == "npz" {
         let (world_mats, _) = nersp::read_cameras(source)?;
-        let first = manifest.views.first().ok_or_else(|| DataError::format(dir, "the session has no views"))?;
-        let size = read_view_stokes(dir, first)?.s0.size();
+        let size = view_size()?;
         let cameras = world_mats
             .iter()
             .zip(&names)

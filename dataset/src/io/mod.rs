@@ -10,6 +10,7 @@ pub mod hdr;
 pub mod input;
 pub mod json;
 pub mod npy;
+pub mod picture;
 pub mod png;
 
 pub use atomic::{write_atomically, write_bytes_atomically};
