@@ -18,16 +18,11 @@ max_samples = 20000
 
 [[variant]]
 name = "full"
-iters = 20
-mesh_res = 64
-mesh_only = true
+options = { iters = 20, mesh_res = 64, mesh_only = true }
 
 [[variant]]
 name = "no-geometric"
-no_geometric = true
-iters = 20
-mesh_res = 64
-mesh_only = true
+options = { no_geometric = true, iters = 20, mesh_res = 64, mesh_only = true }
 "#;
 
 fn main() {

@@ -10,13 +10,14 @@
 //! iterations of the run (its mesh; training minutes so far): quality against time. Scenes are
 //! simulated once into `target/tmp/bench-quality/<WxH>/<scene>` (`<WxH>-<N>views` for other
 //! than 6 training views) and reused; each row is kept in `results.jsonl` there. The bunny comes from `$RMVP_MESHES` or `../shared/meshes`.
-//! Variants not run by default, each the default with one change: `near-surface` 24 uniform
-//! and 40 up-sampled samples per ray instead of 32 and 32 (the same samples, more of them near
-//! the surface); `wide-margin` the masks dilated by a 32nd of the image width (8 pixels at
-//! 256, 38 at 1224) instead of 8 pixels; `level-rates` hash-grid level `l` learning at
-//! `0.9^l` of the coarsest level's rate; `learned-polarization` and `fixed-polarization` the
-//! specular lobe's degree of polarization scaled by a learned number, or NeRSP's fixed
-//! dielectric Fresnel.
+//! Variants not run by default, each the default with one change (`VARIANTS`): `near-surface`
+//! 24 uniform and 40 up-sampled samples per ray instead of 32 and 32 (the same samples, more of
+//! them near the surface); `wide-margin` the masks dilated by 32 pixels instead of 8;
+//! `level-rates` hash-grid level `l` learning at `0.9^l` of the coarsest level's rate;
+//! `learned-polarization` and `fixed-polarization` the specular lobe's degree of polarization
+//! scaled by a learned number, or NeRSP's fixed dielectric Fresnel. A variant of one's own is
+//! `NAME:FIELD=VALUE;...` with any `rmvp recon` option by its field name
+//! (`--variants lp2k:learned_polarization=true;iters=2000`).
 
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
@@ -24,8 +25,8 @@ use rmvp_dataset::{Mesh, Scene, Split};
 use rmvp_pipeline::evaluation_set::{scene, CaptureOptions, SCENES};
 use rmvp_recon::extract::Device;
 use rmvp_recon::model::Preset;
-use rmvp_recon::reconstruct::{reconstruct, write_mesh, Options, MESH};
-use rmvp_recon::volume::Sampling;
+use rmvp_recon::options::{ReconOptions, RunControl};
+use rmvp_recon::reconstruct::{reconstruct, write_mesh, MESH};
 use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -131,7 +132,7 @@ fn plan() -> Plan {
         rays: None,
         seed: 0,
         preset: Preset::Fast,
-        mesh_resolution: Options::default().mesh_resolution,
+        mesh_resolution: ReconOptions::default().mesh_res,
         curve: Vec::new(),
     };
     let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
@@ -160,28 +161,41 @@ fn plan() -> Plan {
     plan
 }
 
-fn options(variant: &str, plan: &Plan) -> Options {
-    let base = Options {
+/// The named variants: each the plan's options with the changes given, as TOML assignments
+/// of [`ReconOptions`] fields.
+const VARIANTS: [(&str, &str); 8] = [
+    ("full", ""),
+    ("no-geometric", "no_geometric = true"),
+    ("no-photometric", "no_photometric = true"),
+    ("near-surface", "coarse_samples = 24\nfine_samples = 40"),
+    ("wide-margin", "margin = 32"),
+    ("level-rates", "grid_level_decay = 0.9"),
+    ("learned-polarization", "learned_polarization = true"),
+    ("fixed-polarization", "learned_polarization = false"),
+];
+
+/// The options of `variant`: a name of [`VARIANTS`], or `NAME:FIELD=VALUE;FIELD=VALUE` (any
+/// [`ReconOptions`] fields, TOML values) for a variant of one's own.
+fn options(variant: &str, plan: &Plan) -> ReconOptions {
+    let base = ReconOptions {
         preset: plan.preset,
-        iterations: plan.iterations,
-        batch_rays: plan.rays,
+        iters: plan.iterations,
+        batch: plan.rays,
         seed: plan.seed,
-        mesh_resolution: plan.mesh_resolution,
-        ..Options::default()
+        mesh_res: plan.mesh_resolution,
+        ..ReconOptions::default()
     };
-    match variant {
-        "full" => base,
-        "near-surface" => Options { sampling: Some(Sampling { coarse: 24, fine: 40, steps: 4 }), ..base },
-        "wide-margin" => Options { margin: Some(plan.size.0 as usize / 32), ..base },
-        "level-rates" => Options { grid_level_decay: Some(0.9), ..base },
-        "learned-polarization" => Options { learned_polarization: Some(true), ..base },
-        "fixed-polarization" => Options { learned_polarization: Some(false), ..base },
-        "no-geometric" => Options { geometric: false, ..base },
-        "no-photometric" => Options { photometric: false, ..base },
-        other => panic!(
-            "unknown variant {other} (full, no-geometric, no-photometric, near-surface, wide-margin, level-rates, learned-polarization, fixed-polarization)"
-        ),
-    }
+    let changes = match variant.split_once(':') {
+        Some((_, assignments)) => assignments.replace(';', "\n"),
+        None => match VARIANTS.iter().find(|(name, _)| *name == variant) {
+            Some((_, changes)) => changes.to_string(),
+            None => {
+                let names: Vec<&str> = VARIANTS.iter().map(|(name, _)| *name).collect();
+                panic!("unknown variant {variant} ({}, or NAME:FIELD=VALUE;...)", names.join(", "))
+            }
+        },
+    };
+    base.with_toml(&changes).unwrap_or_else(|e| panic!("variant {variant}: {e}"))
 }
 
 fn meshes() -> PathBuf {
@@ -221,9 +235,10 @@ fn main() {
         let gt = data.mesh.clone().expect("ground-truth mesh");
         for variant in &plan.variants {
             let options = options(variant, &plan);
+            let variant_name = variant.split(':').next().unwrap_or(variant).to_string();
             let mut label = match plan.preset {
-                Preset::Fast => variant.clone(),
-                other => format!("{}-{variant}", serde_json::to_value(other).expect("a name")).replace('"', ""),
+                Preset::Fast => variant_name,
+                other => format!("{}-{variant_name}", serde_json::to_value(other).expect("a name")).replace('"', ""),
             };
             // Runs of other lengths or batches keep their own folders and rows.
             if let Some(n) = plan.iterations {
@@ -245,7 +260,7 @@ fn main() {
             let start = Instant::now();
             // Training time so far: the wall time less the time spent measuring the curve.
             let (mut trained, mut measuring) = (0.0, 0.0);
-            let trainer = reconstruct(&data, &out, &options, |_, trainer| {
+            let trainer = reconstruct(&data, &out, &options, RunControl::default(), |_, trainer| {
                 trained = start.elapsed().as_secs_f64() - measuring;
                 if plan.curve.contains(&trainer.iteration) && trainer.iteration < trainer.config.iterations {
                     let at = out.join(format!("at-{}", trainer.iteration));

@@ -156,18 +156,11 @@ max_samples = 20000
 
 [[variant]]
 name = "full"
-iters = 20
-checkpoint_every = 5
-mesh_res = 64
-mesh_only = true
+options = { iters = 20, checkpoint_every = 5, mesh_res = 64, mesh_only = true }
 
 [[variant]]
 name = "photometric"
-no_geometric = true
-iters = 20
-checkpoint_every = 5
-mesh_res = 64
-mesh_only = true
+options = { no_geometric = true, iters = 20, checkpoint_every = 5, mesh_res = 64, mesh_only = true }
 "#;
 
 #[test]

@@ -46,7 +46,8 @@ use rmvp_dataset::progress::progress_bar;
 use rmvp_dataset::session::SessionManifest;
 use rmvp_dataset::{Camera, Mesh, Split};
 use rmvp_recon::model::Preset;
-use rmvp_recon::reconstruct::{reconstruct, Options as ReconOptions, MESH};
+use rmvp_recon::options::{ReconOptions, RunControl};
+use rmvp_recon::reconstruct::{reconstruct, MESH};
 use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
@@ -195,8 +196,8 @@ impl Default for BuildOptions {
             panorama: None,
             reference: ReconOptions {
                 preset: Preset::Dense,
-                mesh_resolution: 384,
-                view_outputs: false,
+                mesh_res: 384,
+                mesh_only: true,
                 checkpoint_every: 250,
                 ..ReconOptions::default()
             },
@@ -437,7 +438,7 @@ pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
     if !session.join(MASKS_FOLDER).is_dir() {
         return Err(Error::Unprepared { session: session.clone(), missing: "object masks (masks/)" });
     }
-    let reference_iterations = options.reference.iterations.unwrap_or(options.reference.preset.default_iterations());
+    let reference_iterations = options.reference.iterations();
     let inputs = BuildInputs {
         session: session.clone(),
         train: options.train.clone(),
@@ -535,18 +536,18 @@ pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
             for view in &mut everything.views {
                 view.split = Split::Train;
             }
-            let recon = ReconOptions { resume: options.resume, ..options.reference.clone() };
+            let control = RunControl { resume: options.resume, stop_after: None };
             let bar = progress_bar(options.progress, reference_iterations as u64, "reference");
-            reconstruct(&everything, &reference_dir, &recon, |report, _| {
+            reconstruct(&everything, &reference_dir, &options.reference, control, |report, _| {
                 bar.set_position(report.iteration as u64 + 1);
                 ControlFlow::Continue(())
             })?;
             bar.finish();
             record.reference = Some(ReferenceSummary {
-                preset: recon.preset,
+                preset: options.reference.preset,
                 iterations: reference_iterations,
                 views: everything.views.len(),
-                mesh_resolution: recon.mesh_resolution,
+                mesh_resolution: options.reference.mesh_res,
             });
             finish_stage(&mut record, out, "reference", clock)?;
         }

@@ -33,7 +33,8 @@ use rmvp_dataset::session::{SessionManifest, StokesUnit};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, downsample, gray_ramp, preview, quantile};
 use rmvp_dataset::{Image, Mesh, Scene, Split, View};
 use rmvp_recon::model::Preset;
-use rmvp_recon::reconstruct::{reconstruct, Options as ReconOptions, MESH};
+use rmvp_recon::options::{ReconOptions, RunControl};
+use rmvp_recon::reconstruct::{reconstruct, MESH};
 use rmvp_render::envmap::procedural_image;
 use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
@@ -362,14 +363,14 @@ fn dataset_summary(record: &BuildRecord) -> DatasetSummary {
 /// Reconstruct `dataset` into `dir` and evaluate the mesh against `truth`.
 fn reconstruct_and_evaluate(dataset: &Scene, truth: &Scene, dir: &Path, options: &DemoOptions) -> Result<ReconSummary> {
     let recon_options = ReconOptions {
-        iterations: Some(options.recon_iterations),
-        mesh_resolution: options.mesh_resolution,
-        view_outputs: options.view_outputs,
+        iters: Some(options.recon_iterations),
+        mesh_res: options.mesh_resolution,
+        mesh_only: !options.view_outputs,
         ..ReconOptions::default()
     };
     let bar = progress_bar(options.progress, options.recon_iterations as u64, "recon");
     let started = std::time::Instant::now();
-    reconstruct(dataset, dir, &recon_options, |_, trainer| {
+    reconstruct(dataset, dir, &recon_options, RunControl::default(), |_, trainer| {
         bar.set_position(trainer.iteration as u64);
         ControlFlow::Continue(())
     })?;

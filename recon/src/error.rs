@@ -22,7 +22,7 @@ pub enum Error {
     #[error("{0}")]
     InvalidOption(String),
     /// Both the photometric and the geometric cue switched off.
-    #[error("both cues are switched off: nothing to train")]
+    #[error("both cues are off (no_geometric and no_photometric): nothing to train")]
     BothCuesOff,
     /// A `scale_mat` that cannot map the unit sphere.
     #[error("scale_mat is singular or degenerate: the unit sphere cannot be mapped")]
@@ -74,11 +74,13 @@ pub enum Error {
     /// A trained SDF without a zero crossing.
     #[error("the trained SDF has no zero crossing inside the unit sphere: no surface to extract")]
     NoSurface,
-    /// A checkpoint of another run (other preset, iterations or switches).
-    #[error("{}: was written with other settings (preset, iterations, switches or downscale); resume with the same ones", path.display())]
+    /// A checkpoint of a run trained with other options.
+    #[error("{}: was written with other options ({changed}); resume with the same ones", path.display())]
     CheckpointSettings {
         /// The checkpoint.
         path: PathBuf,
+        /// What changed: each option with its recorded and its new value.
+        changed: String,
     },
     /// The GPU path cannot run here (no driver, no NVRTC, no GPU, a field it does not cover) or
     /// failed.

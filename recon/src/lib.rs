@@ -27,6 +27,7 @@ pub mod extract;
 pub mod geometric;
 pub mod losses;
 pub mod model;
+pub mod options;
 pub mod output;
 pub mod pbrdf;
 pub mod reconstruct;

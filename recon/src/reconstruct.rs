@@ -3,10 +3,9 @@
 
 use crate::data::TrainingSet;
 use crate::extract::{extract_mesh, CpuSdf, Device};
-use crate::model::Preset;
+use crate::options::{ReconOptions, RunControl};
 use crate::output::{render_view, SurfaceGuide};
-use crate::train::{StepReport, TrainConfig, Trainer};
-use crate::volume::Sampling;
+use crate::train::{StepReport, Trainer};
 use crate::{Error, Result};
 use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::{exr, png};
@@ -16,123 +15,6 @@ use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::Path;
 
-/// What the user chose; [`Options::default`] holds every default of `rmvp recon`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Options {
-    /// Model preset.
-    pub preset: Preset,
-    /// Iterations (default: the preset's).
-    pub iterations: Option<u32>,
-    /// Use the photometric cue.
-    pub photometric: bool,
-    /// Use the geometric cue.
-    pub geometric: bool,
-    /// Continue from `checkpoint.bin` in the output folder.
-    pub resume: bool,
-    /// Marching grid cells per axis.
-    pub mesh_resolution: usize,
-    /// Where the mesh's SDF is evaluated (CPU engine or CUDA kernels).
-    pub mesh_device: Device,
-    /// Iterations between checkpoints.
-    pub checkpoint_every: u32,
-    /// Rays per batch (default: the preset's).
-    pub batch_rays: Option<usize>,
-    /// Samples per ray (default: the preset's).
-    pub sampling: Option<Sampling>,
-    /// Dilation of the masks that object rays are drawn from, pixels (default: the preset's).
-    pub margin: Option<usize>,
-    /// Learning rate of hash-grid level `l` relative to level 0, `decay^l` (default: the preset's).
-    pub grid_level_decay: Option<f32>,
-    /// Learn the specular lobe's polarization scale (default: the preset's;
-    /// [`crate::model::Radiance::specular_polarization`]).
-    pub learned_polarization: Option<bool>,
-    /// Train on the views at 1/`downscale` of their size (the official code trains RMVP3D at 2,
-    /// PANDORA at 4); outputs are written at the scene's size.
-    pub downscale: u32,
-    /// Random seed.
-    pub seed: u64,
-    /// Train at most this many iterations in this call, then checkpoint and return without
-    /// results (time-boxed sessions; continue with `resume`).
-    pub stop_after: Option<u32>,
-    /// Write the per-view outputs (normal maps, Stokes, comparison) beside the mesh; off: the
-    /// mesh alone (a dataset's reference shape).
-    pub view_outputs: bool,
-}
-
-impl Default for Options {
-    fn default() -> Self {
-        Self {
-            preset: Preset::Fast,
-            iterations: None,
-            photometric: true,
-            geometric: true,
-            resume: false,
-            mesh_resolution: 256,
-            mesh_device: Device::Cpu,
-            checkpoint_every: 500,
-            batch_rays: None,
-            sampling: None,
-            margin: None,
-            grid_level_decay: None,
-            learned_polarization: None,
-            downscale: 1,
-            seed: 0,
-            stop_after: None,
-            view_outputs: true,
-        }
-    }
-}
-
-impl Options {
-    /// Refuse options no training can run with, in words about their values: both cues off,
-    /// zero iterations, an empty marching grid, zero rays per step.
-    pub fn validate(&self) -> Result<()> {
-        if !self.photometric && !self.geometric {
-            return Err(Error::BothCuesOff);
-        }
-        let fault = if self.iterations == Some(0) {
-            "the number of iterations must be at least 1"
-        } else if self.mesh_resolution == 0 {
-            "the mesh resolution (marching grid cells per axis) must be at least 1"
-        } else if self.batch_rays == Some(0) {
-            "the rays per iteration (batch) must be at least 1"
-        } else if self.checkpoint_every == 0 {
-            "the iterations between checkpoints must be at least 1"
-        } else if self.downscale == 0 {
-            "the training downscale factor must be at least 1"
-        } else {
-            return Ok(());
-        };
-        Err(Error::InvalidOption(fault.into()))
-    }
-
-    /// The training configuration these options give.
-    pub fn config(&self) -> TrainConfig {
-        let iterations = self.iterations.unwrap_or(self.preset.default_iterations());
-        let mut config = TrainConfig::preset(self.preset, iterations);
-        config.photometric = self.photometric;
-        config.geometric = self.geometric;
-        config.seed = self.seed;
-        config.downscale = self.downscale;
-        if let Some(b) = self.batch_rays {
-            config.batch_rays = b;
-        }
-        if let Some(s) = self.sampling {
-            config.sampling = s;
-        }
-        if let Some(m) = self.margin {
-            config.margin = m;
-        }
-        if let Some(d) = self.grid_level_decay {
-            config.adam.grid_level_decay = d;
-        }
-        if let Some(learned) = self.learned_polarization {
-            config.model.learned_polarization = learned;
-        }
-        config
-    }
-}
-
 /// Files of an output folder.
 pub const CHECKPOINT: &str = "checkpoint.bin";
 /// The loss log, one JSON object per iteration.
@@ -141,13 +23,15 @@ pub const LOG: &str = "log.jsonl";
 pub const MESH: &str = "mesh.ply";
 
 /// Train on `scene` into `out`, calling `on_step` after every iteration, then write the results.
-/// The session ends early, checkpointed and without results (the returned trainer has not
-/// finished; continue with `resume`), after `stop_after` iterations or when `on_step` returns
-/// [`ControlFlow::Break`] (a signal, a time limit).
+/// The call ends early, checkpointed and without results (the returned trainer has not
+/// finished; continue with `resume`), after `control.stop_after` iterations or when `on_step`
+/// returns [`ControlFlow::Break`] (a signal, a time limit). The checkpoint records `options`;
+/// resuming with options that train differently is refused, naming them.
 pub fn reconstruct(
     scene: &Scene,
     out: &Path,
-    options: &Options,
+    options: &ReconOptions,
+    control: RunControl,
     mut on_step: impl FnMut(&StepReport, &Trainer) -> ControlFlow<()>,
 ) -> Result<Trainer> {
     options.validate()?;
@@ -162,15 +46,21 @@ pub fn reconstruct(
     };
     let checkpoint = out.join(CHECKPOINT);
     let log_path = out.join(LOG);
-    let mut trainer = if options.resume && checkpoint.exists() {
+    let mut trainer = if control.resume && checkpoint.exists() {
         let t = Trainer::load_checkpoint(&checkpoint, set)?;
-        if t.config != config {
-            return Err(Error::CheckpointSettings { path: checkpoint });
+        let changed = match &t.options {
+            Some(recorded) => recorded.training_differences(options),
+            None => Vec::new(),
+        };
+        if !changed.is_empty() || t.config != config {
+            let changed = if changed.is_empty() { "the training configuration".into() } else { changed.join(", ") };
+            return Err(Error::CheckpointSettings { path: checkpoint, changed });
         }
         t
     } else {
         Trainer::new(config, set)
     };
+    trainer.options = Some(options.clone());
     // The log keeps exactly the iterations the checkpoint has seen.
     let kept: String = match rmvp_dataset::io::input::read_text(&log_path) {
         Ok(text) if trainer.iteration > 0 => {
@@ -180,7 +70,7 @@ pub fn reconstruct(
     };
     write_bytes_atomically(&log_path, kept.as_bytes())?;
     let mut log = std::fs::OpenOptions::new().append(true).open(&log_path).map_err(|e| Error::io(&log_path, e))?;
-    let mut budget = options.stop_after.unwrap_or(u32::MAX);
+    let mut budget = control.stop_after.unwrap_or(u32::MAX);
     while trainer.iteration < trainer.config.iterations {
         if budget == 0 {
             log.sync_data().map_err(|e| Error::io(&log_path, e))?;
@@ -202,10 +92,10 @@ pub fn reconstruct(
             return Ok(trainer);
         }
     }
-    if options.view_outputs {
-        write_results(&trainer, scene, out, options.mesh_resolution, options.mesh_device)?;
+    if options.mesh_only {
+        write_mesh(&trainer, out, options.mesh_res, options.mesh_device)?;
     } else {
-        write_mesh(&trainer, out, options.mesh_resolution, options.mesh_device)?;
+        write_results(&trainer, scene, out, options.mesh_res, options.mesh_device)?;
     }
     Ok(trainer)
 }

@@ -10,6 +10,7 @@ use crate::engine::{Adam, AdamConfig};
 use crate::geometric::{tangent_loss, tangents};
 use crate::losses::{curvature, eikonal, l1, mask_bce, PerTerm, Term};
 use crate::model::{GridGradient, Model, ModelConfig, Preset, STOKES};
+use crate::options::ReconOptions;
 use crate::volume::{sample_depths, Forward, RayGrad, Sampling};
 use crate::{Error, Result};
 use rayon::prelude::*;
@@ -206,6 +207,9 @@ pub struct Trainer {
     pub adam: Adam,
     /// Next iteration to run.
     pub iteration: u32,
+    /// The options the run was started with, where a caller gave them (recorded in the
+    /// checkpoint).
+    pub options: Option<ReconOptions>,
     /// Consecutive non-finite steps.
     bad_steps: u32,
     /// The last state known to be finite (every 100 iterations): (params, adam, iteration).
@@ -219,7 +223,7 @@ impl Trainer {
         let params = model.init(config.seed);
         let adam = Adam::new(params.len());
         let safe = (params.clone(), adam.clone(), 0);
-        Self { config, model, set, params, adam, iteration: 0, bad_steps: 0, safe }
+        Self { config, model, set, params, adam, iteration: 0, options: None, bad_steps: 0, safe }
     }
 
     /// Per-level weights of the hash grid at the current iteration (coarse to fine).
@@ -410,6 +414,7 @@ impl Trainer {
         let header = serde_json::to_vec(&CheckpointHeader {
             format: CHECKPOINT_FORMAT.into(),
             config: self.config.clone(),
+            options: self.options.clone(),
             iteration: self.iteration,
             adam_steps: self.adam.steps,
             parameters: self.params.len(),
@@ -432,17 +437,9 @@ impl Trainer {
     pub fn load_checkpoint(path: &Path, set: TrainingSet) -> Result<Self> {
         let bytes = rmvp_dataset::io::input::read_bytes(path)?;
         let bad = |m: &str| Error::BadCheckpoint { path: path.to_path_buf(), problem: m.to_string() };
-        if bytes.len() < 16 || &bytes[..8] != CHECKPOINT_MAGIC {
-            return Err(bad("not an rmvp checkpoint"));
-        }
-        let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
-        let header: CheckpointHeader =
-            serde_json::from_slice(bytes.get(16..16usize.saturating_add(len)).ok_or_else(|| bad("truncated header"))?)
-                .map_err(|e| bad(&format!("header: {e}")))?;
-        if header.format != CHECKPOINT_FORMAT {
-            return Err(bad(&format!("format {}, this version reads {CHECKPOINT_FORMAT}", header.format)));
-        }
+        let (header, len) = checkpoint_header(path, &bytes)?;
         let mut trainer = Self::new(header.config, set);
+        trainer.options = header.options;
         let n = trainer.params.len();
         if header.parameters != n {
             return Err(bad(&format!("{} parameters, the model has {n}", header.parameters)));
@@ -480,10 +477,34 @@ const CHECKPOINT_MAGIC: &[u8; 8] = b"RMVPCKPT";
 /// The checkpoint's format: 2 since the hash grid's tables come after the networks.
 const CHECKPOINT_FORMAT: &str = "rmvp-recon-checkpoint-2";
 
+/// The options a checkpoint's run was started with (`None` for a run started without them).
+pub fn checkpoint_options(path: &Path) -> Result<Option<ReconOptions>> {
+    let bytes = rmvp_dataset::io::input::read_bytes(path)?;
+    Ok(checkpoint_header(path, &bytes)?.0.options)
+}
+
+/// A checkpoint's header and its length in bytes.
+fn checkpoint_header(path: &Path, bytes: &[u8]) -> Result<(CheckpointHeader, usize)> {
+    let bad = |m: &str| Error::BadCheckpoint { path: path.to_path_buf(), problem: m.to_string() };
+    if bytes.len() < 16 || &bytes[..8] != CHECKPOINT_MAGIC {
+        return Err(bad("not an rmvp checkpoint"));
+    }
+    let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
+    let header: CheckpointHeader =
+        serde_json::from_slice(bytes.get(16..16usize.saturating_add(len)).ok_or_else(|| bad("truncated header"))?)
+            .map_err(|e| bad(&format!("header: {e}")))?;
+    if header.format != CHECKPOINT_FORMAT {
+        return Err(bad(&format!("format {}, this version reads {CHECKPOINT_FORMAT}", header.format)));
+    }
+    Ok((header, len))
+}
+
 #[derive(Serialize, Deserialize)]
 struct CheckpointHeader {
     format: String,
     config: TrainConfig,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    options: Option<ReconOptions>,
     iteration: u32,
     adam_steps: u32,
     parameters: usize,

@@ -10,7 +10,8 @@ use rmvp_dataset::Mesh;
 use rmvp_recon::cuda::CudaSdf;
 use rmvp_recon::extract::{CpuSdf, Device, SdfEvaluator};
 use rmvp_recon::model::{Model, ModelConfig, Preset};
-use rmvp_recon::reconstruct::{reconstruct, Options, CHECKPOINT, MESH};
+use rmvp_recon::options::{ReconOptions, RunControl};
+use rmvp_recon::reconstruct::{reconstruct, CHECKPOINT, MESH};
 use rmvp_recon::Error;
 use std::ops::ControlFlow;
 
@@ -77,14 +78,14 @@ fn the_paper_preset_is_refused_by_name() {
 fn a_cuda_mesh_is_written_or_refused_before_training() {
     let scene = read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
     let out = tempfile::tempdir().unwrap();
-    let options = Options {
-        iterations: Some(2),
-        mesh_resolution: 48,
+    let options = ReconOptions {
+        iters: Some(2),
+        mesh_res: 48,
         mesh_device: Device::Cuda,
-        view_outputs: false,
-        ..Options::default()
+        mesh_only: true,
+        ..ReconOptions::default()
     };
-    match reconstruct(&scene, out.path(), &options, |_, _| ControlFlow::Continue(())) {
+    match reconstruct(&scene, out.path(), &options, RunControl::default(), |_, _| ControlFlow::Continue(())) {
         Ok(_) => {
             let mesh = Mesh::read(&out.path().join(MESH)).unwrap();
             assert!(mesh.faces.len() > 1000, "{} faces", mesh.faces.len());

@@ -6,8 +6,9 @@ use rmvp_dataset::{Scene, Split};
 use rmvp_recon::data::TrainingSet;
 use rmvp_recon::extract::{extract_mesh, CpuSdf};
 use rmvp_recon::model::Preset;
+use rmvp_recon::options::{ReconOptions, RunControl};
 use rmvp_recon::output::{render_view as render_outputs, SurfaceGuide};
-use rmvp_recon::reconstruct::{reconstruct, Options};
+use rmvp_recon::reconstruct::reconstruct;
 use rmvp_recon::train::{StepEvent, TrainConfig, Trainer};
 use rmvp_recon::volume::{sample_depths, Forward};
 use rmvp_recon::Error;
@@ -203,9 +204,9 @@ fn non_finite_steps_are_skipped_then_rolled_back() {
 fn unusable_inputs_are_refused_by_kind() {
     let mut scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let both_off = Options { photometric: false, geometric: false, ..Options::default() };
+    let both_off = ReconOptions { no_photometric: true, no_geometric: true, ..ReconOptions::default() };
     assert!(matches!(
-        reconstruct(&scene, dir.path(), &both_off, |_, _| ControlFlow::Continue(())),
+        reconstruct(&scene, dir.path(), &both_off, RunControl::default(), |_, _| ControlFlow::Continue(())),
         Err(Error::BothCuesOff)
     ));
     scene.views[1].mask = None;

@@ -74,7 +74,7 @@ pub struct BuildArgs {
     #[arg(long)]
     reference_iters: Option<u32>,
     /// The reference mesh's marching grid cells per axis.
-    #[arg(long, default_value_t = BuildOptions::default().reference.mesh_resolution)]
+    #[arg(long, default_value_t = BuildOptions::default().reference.mesh_res)]
     reference_mesh_res: usize,
     /// Continue an unfinished build in the output folder.
     #[arg(long)]
@@ -251,10 +251,10 @@ fn build(args: BuildArgs) -> Result<()> {
         calibration: args.camera,
         scan: args.scan.map(|path| ScanInput { path, units: args.scan_units }),
         panorama: args.env.map(|path| PanoramaInput { path, yaw_deg: args.env_yaw }),
-        reference: rmvp_recon::reconstruct::Options {
+        reference: rmvp_recon::options::ReconOptions {
             preset: args.reference_preset,
-            iterations: args.reference_iters,
-            mesh_resolution: args.reference_mesh_res,
+            iters: args.reference_iters,
+            mesh_res: args.reference_mesh_res,
             ..defaults.reference
         },
         resume: args.resume,

@@ -6,12 +6,12 @@
 //! seeds = [0, 1, 2]
 //!
 //! [[variant]]
-//! name = "full"            # `rmvp recon` options, by their flag names
-//! iters = 1000
+//! name = "full"
+//! options = { iters = 1000 }   # `rmvp recon`'s options, by their flags' names
 //!
 //! [[variant]]
 //! name = "no-geometric"
-//! no_geometric = true
+//! options = { no_geometric = true }
 //!
 //! [evaluation]             # optional: against each dataset's ground-truth mesh and normals
 //! max_samples = 200000
@@ -20,8 +20,7 @@
 use crate::{Error, Result};
 use rmvp_align::SurfaceOptions;
 use rmvp_dataset::layout::Layout;
-use rmvp_recon::model::Preset;
-use rmvp_recon::reconstruct::Options as ReconOptions;
+use rmvp_recon::options::ReconOptions;
 use serde::{Deserialize, Serialize};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -37,61 +36,22 @@ pub const PLAN_FILE: &str = "plan.json";
 /// The `format` of [`BatchPlan`].
 pub const PLAN_FORMAT: &str = "rmvp-batch-plan";
 
-/// A named set of `rmvp recon` options; the fields are the flags' names.
+/// A named set of reconstruction options ([`ReconOptions`], the keys of `rmvp recon`'s flags:
+/// `mesh_res` is `--mesh-res`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Variant {
     /// Name (table rows, task folders): letters, digits, `-`, `_`, `.`.
     pub name: String,
-    /// Model preset.
+    /// The options (their defaults where not given); the seed comes from the plan's `seeds`.
     #[serde(default)]
-    pub preset: Preset,
-    /// Training iterations (default: the preset's).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub iters: Option<u32>,
-    /// Photometric cue only.
-    #[serde(default)]
-    pub no_geometric: bool,
-    /// Geometric cue only.
-    #[serde(default)]
-    pub no_photometric: bool,
-    /// Marching grid cells per axis (default: `rmvp recon`'s).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub mesh_res: Option<usize>,
-    /// Rays per iteration (default: the preset's).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub batch: Option<usize>,
-    /// Iterations between checkpoints (default: `rmvp recon`'s).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub checkpoint_every: Option<u32>,
-    /// Write the mesh alone (no normal maps, Stokes or comparison picture).
-    #[serde(default)]
-    pub mesh_only: bool,
-    /// Train at 1/N of the views' size (default: `rmvp recon`'s, full size).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub downscale: Option<u32>,
+    pub options: ReconOptions,
 }
 
 impl Variant {
-    /// The reconstruction options of this variant for one seed (always resuming: a task that
-    /// starts again continues from its checkpoint).
+    /// The reconstruction options of this variant for one seed.
     pub fn recon_options(&self, seed: u64) -> ReconOptions {
-        let defaults = ReconOptions::default();
-        ReconOptions {
-            preset: self.preset,
-            iterations: self.iters,
-            photometric: !self.no_photometric,
-            geometric: !self.no_geometric,
-            resume: true,
-            mesh_resolution: self.mesh_res.unwrap_or(defaults.mesh_resolution),
-            checkpoint_every: self.checkpoint_every.unwrap_or(defaults.checkpoint_every).max(1),
-            batch_rays: self.batch,
-            seed,
-            stop_after: None,
-            view_outputs: !self.mesh_only,
-            downscale: self.downscale.unwrap_or(defaults.downscale),
-            ..defaults
-        }
+        ReconOptions { seed, ..self.options.clone() }
     }
 }
 
@@ -284,12 +244,12 @@ impl BatchPlan {
             if variants.iter().any(|v| v.name == variant.name) {
                 return Err(fault(Some(span), format!("two variants named {:?}", variant.name)));
             }
-            if let Err(e) = variant.recon_options(0).validate() {
-                let why = match e {
-                    rmvp_recon::Error::BothCuesOff => "turns both cues off (no_geometric and no_photometric)".into(),
-                    other => other.to_string(),
-                };
-                return Err(fault(Some(span), format!("variant {:?}: {why}", variant.name)));
+            if variant.options.seed != ReconOptions::default().seed {
+                let why = format!("variant {:?} sets a seed; give the seeds at the top of the plan", variant.name);
+                return Err(fault(Some(span), why));
+            }
+            if let Err(e) = variant.options.validate() {
+                return Err(fault(Some(span), format!("variant {:?}: {e}", variant.name)));
             }
             variants.push(variant.clone());
         }
@@ -473,7 +433,7 @@ mod tests {
         std::fs::write(dir.path().join("built/cow/rmvp/mesh.ply"), b"").unwrap();
         let plan = plan_in(
             dir.path(),
-            "datasets = [\"scenes/*_nersp\", \"built/cow\"]\nseeds = [3, 4]\n\n[[variant]]\nname = \"full\"\niters = 50\n\n[[variant]]\nname = \"no-geo\"\nno_geometric = true\n",
+            "datasets = [\"scenes/*_nersp\", \"built/cow\"]\nseeds = [3, 4]\n\n[[variant]]\nname = \"full\"\noptions = { iters = 50 }\n\n[[variant]]\nname = \"no-geo\"\n[variant.options]\nno_geometric = true\n",
         )
         .unwrap();
         let ids: Vec<&str> = plan.tasks.iter().map(|t| t.id.as_str()).collect();
@@ -483,8 +443,8 @@ mod tests {
         assert!(plan.tasks[8].scene.ends_with("built/cow/rmvp"));
         assert!(plan.tasks.iter().enumerate().all(|(i, t)| t.index == i));
         let options = plan.tasks[2].variant.recon_options(plan.tasks[2].seed);
-        assert!(!options.geometric && options.photometric && options.resume && options.seed == 3);
-        assert_eq!(plan.tasks[0].variant.recon_options(0).iterations, Some(50));
+        assert!(options.no_geometric && !options.no_photometric && options.seed == 3);
+        assert_eq!(plan.tasks[0].variant.recon_options(0).iters, Some(50));
     }
 
     #[test]
@@ -492,10 +452,10 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         fake_scene(&dir.path().join("spot"), true);
         fake_scene(&dir.path().join("nomesh"), false);
-        let variant = "\n[[variant]]\nname = \"full\"\n";
+        let variant = "\n[[variant]]\nname = \"full\"\n[variant.options]\n";
 
         let (line, why) = refusal(plan_in(dir.path(), &format!("datasets = [\"spot\"]{variant}iter = 10\n")));
-        assert_eq!(line, Some(4), "{why}");
+        assert_eq!(line, Some(5), "{why}");
         assert!(why.contains("unknown field `iter`"), "{why}");
 
         let text = format!("datasets = [\n  \"spot\",\n  \"missing\",\n]{variant}");
@@ -517,7 +477,7 @@ mod tests {
         assert!(why.contains("both cues"), "{why}");
 
         let (line, why) = refusal(plan_in(dir.path(), &format!("datasets = [\"spot\"]{variant}preset = \"slow\"\n")));
-        assert_eq!(line, Some(4), "{why}");
+        assert_eq!(line, Some(5), "{why}");
         assert!(why.contains("slow"), "{why}");
 
         let twice = format!("datasets = [\"spot\", \"./spot\"]{variant}");

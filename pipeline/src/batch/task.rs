@@ -16,6 +16,7 @@ use crate::{Error, Result};
 use rmvp_align::{evaluate, Evaluation};
 use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::layout::read_scene;
+use rmvp_recon::options::RunControl;
 use rmvp_recon::reconstruct::{reconstruct, LOG, MESH};
 use serde::{Deserialize, Serialize};
 use std::ops::ControlFlow;
@@ -191,10 +192,12 @@ fn run_reconstruction(
     let sessions_path = folder.join(SESSIONS_FILE);
     let earlier: Sessions = read_json(&sessions_path, "task sessions").unwrap_or_default();
     let options = task.variant.recon_options(task.seed);
-    let total = options.config().iterations;
+    let total = options.iterations();
     let started = Instant::now();
     let mut trained = 0.0;
-    let trainer = reconstruct(&scene, folder, &options, |_, trainer| {
+    // A task started again continues from its checkpoint.
+    let control = RunControl { resume: true, stop_after: None };
+    let trainer = reconstruct(&scene, folder, &options, control, |_, trainer| {
         trained = started.elapsed().as_secs_f64();
         on_step(trainer.iteration, total);
         if stop.load(Ordering::Relaxed) {

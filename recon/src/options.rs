@@ -1,0 +1,201 @@
+//! The settings of a reconstruction, defined once: [`ReconOptions`] is `rmvp recon`'s flags
+//! (with the `clap` feature; each field's doc comment is its help), a batch plan variant's
+//! `options` table and a quality-bench variant (serde), under the same names
+//! (`mesh_res` is `--mesh-res`), and it is recorded in `checkpoint.bin`.
+//!
+//! Adding an option: a field here with its doc comment, its default in [`ReconOptions::default`]
+//! and its effect in [`ReconOptions::config`] (or in the outputs); the command line, batch plans,
+//! the bench and the checkpoint take it from here. `recon/tests/options.rs` holds that every
+//! field is accepted everywhere under its name.
+
+use crate::extract::Device;
+use crate::model::Preset;
+use crate::train::TrainConfig;
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+
+/// What a caller sets for one reconstruction; [`ReconOptions::default`] holds every default.
+/// How one call runs (resuming, stopping early) is [`RunControl`], not an option.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::Args))]
+#[serde(default, deny_unknown_fields)]
+pub struct ReconOptions {
+    /// Model preset: `fast` (hash grid, minutes on a CPU), `dense` (a finer grid, twice the
+    /// rays, 4000 iterations: a dataset's reference shape) or `paper` (NeRSP's 8x256 MLP).
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value_t = Preset::Fast))]
+    pub preset: Preset,
+    /// Training iterations (default: the preset's; fast 3000, about 6 minutes on 2 cores).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub iters: Option<u32>,
+    /// Photometric cue only (the PANDORA-like ablation).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub no_geometric: bool,
+    /// Geometric cue only (the MVAS-like ablation).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub no_photometric: bool,
+    /// Rays per iteration (default: the preset's; fast 256, dense and paper 512).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub batch: Option<usize>,
+    /// Uniform samples per ray between near and far (default: the preset's; fast 32).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub coarse_samples: Option<usize>,
+    /// Samples per ray added near the surface by up-sampling (default: the preset's; fast 32).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub fine_samples: Option<usize>,
+    /// Dilation of the masks that object rays are drawn from, pixels (default: the preset's, 8).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub margin: Option<usize>,
+    /// Learning rate of hash-grid level `l` relative to level 0, `decay^l` (default: the
+    /// preset's, 1).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub grid_level_decay: Option<f32>,
+    /// Learn one scale of the specular lobe's degree of polarization for the object (a
+    /// conductor's reflection is nearly unpolarized); `false` keeps NeRSP's fixed dielectric
+    /// Fresnel; default: the preset's (fixed). The value learned is in log.jsonl
+    /// (`polarization`) and printed at the end.
+    #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
+    pub learned_polarization: Option<bool>,
+    /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the
+    /// intrinsics scaled); the outputs are written at the scene's size. The official code trains
+    /// RMVP3D at 2 (612x512), PANDORA at 4.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 1))]
+    pub downscale: u32,
+    /// Random seed.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 0))]
+    pub seed: u64,
+    /// Marching grid cells per axis for the mesh.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 256))]
+    pub mesh_res: usize,
+    /// Where the mesh's SDF is evaluated: `cuda` runs it on the first NVIDIA GPU (needs its
+    /// driver and NVRTC; training stays on the CPU).
+    #[cfg_attr(feature = "clap", arg(long, value_enum, default_value_t = Device::Cpu))]
+    pub mesh_device: Device,
+    /// Write the mesh alone (no normal maps, Stokes or comparison picture): a dataset's
+    /// reference shape.
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub mesh_only: bool,
+    /// Iterations between checkpoints.
+    #[cfg_attr(feature = "clap", arg(long, default_value_t = 500))]
+    pub checkpoint_every: u32,
+}
+
+impl Default for ReconOptions {
+    fn default() -> Self {
+        Self {
+            preset: Preset::Fast,
+            iters: None,
+            no_geometric: false,
+            no_photometric: false,
+            batch: None,
+            coarse_samples: None,
+            fine_samples: None,
+            margin: None,
+            grid_level_decay: None,
+            learned_polarization: None,
+            downscale: 1,
+            seed: 0,
+            mesh_res: 256,
+            mesh_device: Device::Cpu,
+            mesh_only: false,
+            checkpoint_every: 500,
+        }
+    }
+}
+
+/// How one call of [`crate::reconstruct::reconstruct`] runs; never recorded, since it does not
+/// change what is trained.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RunControl {
+    /// Continue from `checkpoint.bin` in the output folder (its options must be these).
+    pub resume: bool,
+    /// Train at most this many iterations in this call, then checkpoint and return without
+    /// results (time-boxed sessions; continue with `resume`).
+    pub stop_after: Option<u32>,
+}
+
+impl ReconOptions {
+    /// Refuse options no training can run with, in words about their values: both cues off,
+    /// zero iterations, an empty marching grid, zero rays or samples per step.
+    pub fn validate(&self) -> Result<()> {
+        if self.no_photometric && self.no_geometric {
+            return Err(Error::BothCuesOff);
+        }
+        let fault = if self.iters == Some(0) {
+            "the number of iterations must be at least 1"
+        } else if self.mesh_res == 0 {
+            "the mesh resolution (marching grid cells per axis) must be at least 1"
+        } else if self.batch == Some(0) {
+            "the rays per iteration (batch) must be at least 1"
+        } else if self.coarse_samples == Some(0) {
+            "the uniform samples per ray must be at least 1"
+        } else if self.checkpoint_every == 0 {
+            "the iterations between checkpoints must be at least 1"
+        } else if self.downscale == 0 {
+            "the training downscale factor must be at least 1"
+        } else if self.grid_level_decay.is_some_and(|d| !(d.is_finite() && d > 0.0)) {
+            "the hash-grid levels' learning-rate decay must be a positive number"
+        } else {
+            return Ok(());
+        };
+        Err(Error::InvalidOption(fault.into()))
+    }
+
+    /// The options that change what is trained (all but the mesh's and the checkpoints'),
+    /// where `self` (recorded) and `now` differ: `name: recorded -> now` each.
+    pub fn training_differences(&self, now: &ReconOptions) -> Vec<String> {
+        let (recorded, now) = (serde_json::to_value(self), serde_json::to_value(now));
+        let (Ok(serde_json::Value::Object(recorded)), Ok(serde_json::Value::Object(now))) = (recorded, now) else {
+            unreachable!("options serialise to a JSON object")
+        };
+        const OUTPUT_ONLY: [&str; 4] = ["mesh_res", "mesh_device", "mesh_only", "checkpoint_every"];
+        recorded
+            .iter()
+            .filter(|(name, value)| !OUTPUT_ONLY.contains(&name.as_str()) && now.get(name.as_str()) != Some(value))
+            .map(|(name, value)| {
+                format!("{name}: {value} -> {}", now.get(name.as_str()).unwrap_or(&serde_json::Value::Null))
+            })
+            .collect()
+    }
+
+    /// These options with some changed by TOML assignments (`learned_polarization = true`, one
+    /// per line, the fields' names): how the quality bench writes its variants.
+    pub fn with_toml(&self, assignments: &str) -> std::result::Result<ReconOptions, String> {
+        let changes: toml::Table = toml::from_str(assignments).map_err(|e| e.message().trim().to_string())?;
+        let mut table = toml::Table::try_from(self).map_err(|e| e.to_string())?;
+        table.extend(changes);
+        table.try_into().map_err(|e: toml::de::Error| e.message().trim().to_string())
+    }
+
+    /// The iterations this run trains.
+    pub fn iterations(&self) -> u32 {
+        self.iters.unwrap_or(self.preset.default_iterations())
+    }
+
+    /// The training configuration these options give: the preset's, with what was set.
+    pub fn config(&self) -> TrainConfig {
+        let mut config = TrainConfig::preset(self.preset, self.iterations());
+        config.photometric = !self.no_photometric;
+        config.geometric = !self.no_geometric;
+        config.seed = self.seed;
+        config.downscale = self.downscale;
+        if let Some(b) = self.batch {
+            config.batch_rays = b;
+        }
+        if let Some(n) = self.coarse_samples {
+            config.sampling.coarse = n;
+        }
+        if let Some(n) = self.fine_samples {
+            config.sampling.fine = n;
+        }
+        if let Some(m) = self.margin {
+            config.margin = m;
+        }
+        if let Some(d) = self.grid_level_decay {
+            config.adam.grid_level_decay = d;
+        }
+        if let Some(learned) = self.learned_polarization {
+            config.model.learned_polarization = learned;
+        }
+        config
+    }
+}
