@@ -157,7 +157,7 @@ fn fifos_and_forged_sizes_in_a_scene_are_refused_naming_the_file() {
     let mask = scene.join("mask/0000.png");
     let kept = std::fs::read(&mask).unwrap();
     replace(&mask, &forged_png(&mask_source(), 200_000, 200_000));
-    info(&["mask/0000.png: declares a 200000x200000 image, more than the limit of 268435456 pixels"]);
+    info(&["mask/0000.png: declares a 200000x200000 image, more than the limit of 268435456 pixels", "--max-pixels"]);
     replace(&mask, &kept);
 
     // A training mask that decodes but is another view's: the damaged file is named, and the

@@ -248,8 +248,32 @@ fn colmap_models_of_a_default_run_import_and_the_dataset_is_undistorted() {
             Some(_) => assert!(off < 0.4 * off_captured && s0 < 0.9 * s0_captured, "{model}"),
         }
     }
-    // A model of the views at another size (COLMAP run on smaller copies) is refused.
+    // A build stopped before its end (its record says so) resumes only with the options it was
+    // started with; each changed one is named, the reference's included.
     let dir = tmp.path().join("PINHOLE");
+    let (session, dataset) = (dir.join("session"), dir.join("dataset"));
+    let record = dataset.join("build.json");
+    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&record).unwrap()).unwrap();
+    json["complete"] = false.into();
+    json["stages"].as_array_mut().unwrap().pop();
+    std::fs::write(&record, serde_json::to_string(&json).unwrap()).unwrap();
+    let build = |extra: &[&str], expect: fn(&[&str]) -> String| {
+        let mut args = vec!["dataset", "build", s(&session), "-o", s(&dataset), "--train-views", "6"];
+        args.extend_from_slice(extra);
+        expect(&args)
+    };
+    let err = build(&[], fails);
+    assert!(err.contains("an unfinished build is here") && err.contains("--resume"), "{err}");
+    let err = build(&["--resume", "--reference-mesh-res", "200"], fails);
+    assert!(err.contains("other options (reference.mesh_res: 384 -> 200)"), "{err}");
+    let err = build(&["--resume", "--reference-iters", "90", "--camera", s(&dir.join("poses.json"))], fails);
+    assert!(err.contains("calibration: null -> ") && err.contains("reference.iters: null -> 90"), "{err}");
+    build(&["--resume"], ok);
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&record).unwrap()).unwrap();
+    assert_eq!(json["complete"], true);
+    assert_eq!(json["options"]["reference"]["mesh_res"], 384);
+
+    // A model of the views at another size (COLMAP run on smaller copies) is refused.
     let cameras = std::fs::read_to_string(dir.join("sparse/0/cameras.txt")).unwrap();
     let (w, h) = (source.views[0].camera.width, source.views[0].camera.height);
     let half = cameras.replace(&format!(" {w} {h} "), &format!(" {} {} ", w / 2, h / 2));

@@ -25,6 +25,18 @@ pub enum Error {
         /// What is wrong with it.
         message: String,
     },
+    /// An image file that declares more pixels than the limit ([`crate::io::input::max_pixels`]).
+    #[error("{}: declares a {width}x{height} image, more than the limit of {limit} pixels", path.display())]
+    ImageTooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its declared width.
+        width: u64,
+        /// Its declared height.
+        height: u64,
+        /// The limit, pixels.
+        limit: u64,
+    },
     /// Data that does not hang together (sizes, counts, values), independent of any file.
     #[error("{0}")]
     Invalid(String),

@@ -58,7 +58,7 @@ pub const BUILD_FILE: &str = "build.json";
 /// The layouts every dataset holds, each in the folder named after it.
 pub const DATASET_LAYOUTS: [Layout; 2] = [Layout::Nersp, Layout::Rmvp];
 /// The `format` of [`BuildRecord`].
-pub const BUILD_FORMAT: &str = "rmvp-build";
+pub const BUILD_FORMAT: &str = "rmvp-build-2";
 /// The reference reconstruction's folder.
 pub const REFERENCE_FOLDER: &str = "work/reference";
 /// The scan alignment's folder (`alignment.json`, `aligned.ply`).
@@ -69,8 +69,9 @@ pub const SCAN_SCALE_TOLERANCE: f64 = 0.05;
 /// (bounding-box diagonal) after alignment is refused.
 pub const SCAN_MAX_MEDIAN_DISTANCE: f64 = 0.01;
 
-/// Which views train.
+/// Which views train (recorded as the count or the list of names).
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
 pub enum TrainViews {
     /// This many, spread over the viewing directions (farthest-point sampling).
     Count(usize),
@@ -163,11 +164,15 @@ pub struct PanoramaInput {
 }
 
 /// What to build; [`BuildOptions::default`] holds `rmvp dataset build`'s defaults.
-#[derive(Clone, Debug, PartialEq)]
+/// All but `output`, `resume` and `progress` are recorded in `build.json`: a resumed build must
+/// be asked the same.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct BuildOptions {
     /// The posed, masked session.
     pub session: PathBuf,
     /// The dataset folder.
+    #[serde(skip)]
     pub output: PathBuf,
     /// The training split (NeRSP: 6 sparse views).
     pub train: TrainViews,
@@ -180,8 +185,10 @@ pub struct BuildOptions {
     /// The reference reconstruction from all views (with a scan).
     pub reference: ReconOptions,
     /// Continue an unfinished build in `output`.
+    #[serde(skip)]
     pub resume: bool,
     /// Show progress bars.
+    #[serde(skip)]
     pub progress: bool,
 }
 
@@ -205,23 +212,6 @@ impl Default for BuildOptions {
             progress: true,
         }
     }
-}
-
-/// What a build was asked for: a resumed build must be asked the same.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct BuildInputs {
-    /// The session folder.
-    pub session: PathBuf,
-    /// The split asked for.
-    pub train: TrainViews,
-    /// The scan.
-    pub scan: Option<ScanInput>,
-    /// The panorama.
-    pub panorama: Option<PanoramaInput>,
-    /// The reference reconstruction's preset.
-    pub reference_preset: Preset,
-    /// Its iterations.
-    pub reference_iterations: u32,
 }
 
 /// How the views were posed.
@@ -314,8 +304,8 @@ pub struct StageRecord {
 pub struct BuildRecord {
     /// [`BUILD_FORMAT`].
     pub format: String,
-    /// What was asked.
-    pub inputs: BuildInputs,
+    /// What was asked (the recorded [`BuildOptions`]).
+    pub options: BuildOptions,
     /// The object's name (the session's).
     pub object: String,
     /// The camera (identity, pixel format, size) as the session recorded it.
@@ -399,25 +389,45 @@ fn world_in_millimetres(poses: &PoseSet) -> bool {
     poses.world.contains(BOARD_WORLD)
 }
 
+/// The recorded options that differ between `recorded` and `now`, each as `name: was -> now`
+/// (nested ones by their path, `reference.mesh_res`).
+fn changed_options(recorded: &BuildOptions, now: &BuildOptions) -> Vec<String> {
+    fn walk(path: &str, was: &serde_json::Value, now: &serde_json::Value, out: &mut Vec<String>) {
+        match (was, now) {
+            (serde_json::Value::Object(a), serde_json::Value::Object(b)) => {
+                for key in a.keys().chain(b.keys().filter(|k| !a.contains_key(*k))) {
+                    let null = serde_json::Value::Null;
+                    let name = if path.is_empty() { key.clone() } else { format!("{path}.{key}") };
+                    walk(&name, a.get(key).unwrap_or(&null), b.get(key).unwrap_or(&null), out);
+                }
+            }
+            (a, b) if a != b => out.push(format!("{path}: {a} -> {b}")),
+            _ => {}
+        }
+    }
+    let mut out = Vec::new();
+    let json = |o: &BuildOptions| serde_json::to_value(o).expect("plain data");
+    walk("", &json(recorded), &json(now), &mut out);
+    out
+}
+
 /// The record to continue, or a new one; refuses a folder that holds something else.
-fn start(options: &BuildOptions, inputs: &BuildInputs) -> Result<Option<BuildRecord>> {
+fn start(options: &BuildOptions) -> Result<Option<BuildRecord>> {
     let out = &options.output;
     let folder = |why: String| Error::Folder { path: out.clone(), why };
     if out.join(BUILD_FILE).is_file() {
         let record = BuildRecord::read(out)?;
         if !options.resume {
             let done: Vec<&str> = record.stages.iter().map(|s| s.name.as_str()).collect();
-            return Err(folder(if record.complete {
-                "a complete dataset is here already; remove it or build into another folder".into()
+            return Err(if record.complete {
+                folder("a complete dataset is here already; remove it or build into another folder".into())
             } else {
-                format!("an unfinished build is here (done: {}); --resume continues it", done.join(", "))
-            }));
+                Error::BuildUnfinished { path: out.clone(), done: done.join(", ") }
+            });
         }
-        if &record.inputs != inputs {
-            return Err(folder(format!(
-                "was built from other inputs ({}); remove it to start again",
-                serde_json::to_string(&record.inputs).expect("plain")
-            )));
+        let changed = changed_options(&record.options, options);
+        if !changed.is_empty() {
+            return Err(Error::BuildOptionsChanged { path: out.clone(), changed: changed.join(", ") });
         }
         return Ok(Some(record));
     }
@@ -439,15 +449,7 @@ pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
         return Err(Error::Unprepared { session: session.clone(), missing: "object masks (masks/)" });
     }
     let reference_iterations = options.reference.iterations();
-    let inputs = BuildInputs {
-        session: session.clone(),
-        train: options.train.clone(),
-        scan: options.scan.clone(),
-        panorama: options.panorama.clone(),
-        reference_preset: options.reference.preset,
-        reference_iterations,
-    };
-    let previous = start(options, &inputs)?;
+    let previous = start(options)?;
     if let Some(record) = &previous {
         if record.complete {
             return Ok(record.clone());
@@ -502,7 +504,7 @@ pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
     let first = &scene.views[0].camera;
     let mut record = previous.unwrap_or_else(|| BuildRecord {
         format: BUILD_FORMAT.into(),
-        inputs: inputs.clone(),
+        options: options.clone(),
         object: manifest.object.clone(),
         camera: serde_json::to_value(&manifest.camera).expect("plain"),
         settings: serde_json::to_value(&manifest.settings).expect("plain"),
@@ -651,7 +653,7 @@ pub fn align_scan(scan: &ScanInput, reference: &Mesh, world_mm: bool, dir: &Path
         if (ratio - 1.0).abs() > SCAN_SCALE_TOLERANCE {
             return Err(refuse(format!(
                 "aligning it needs a scale of {:.4}, where {} in this millimetre world give {expected}: \
-                 wrong units? (--scan-units mm|cm|m|in)",
+                 wrong units? (the scan's unit of length: mm, cm, m or in)",
                 alignment.transform.s,
                 scan.units.name()
             )));

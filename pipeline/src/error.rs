@@ -75,6 +75,22 @@ pub enum Error {
         /// What is wrong, with the figures.
         why: String,
     },
+    /// An unfinished dataset build in the folder a new one was asked into.
+    #[error("{}: an unfinished build is here (done: {done}); resume it to continue", path.display())]
+    BuildUnfinished {
+        /// The dataset folder.
+        path: std::path::PathBuf,
+        /// Its finished stages.
+        done: String,
+    },
+    /// A build resumed with options other than those it was started with.
+    #[error("{}: was built with other options ({changed}); build again with the same ones, or into another folder", path.display())]
+    BuildOptionsChanged {
+        /// The dataset folder.
+        path: std::path::PathBuf,
+        /// Each changed option: `name: recorded -> now`.
+        changed: String,
+    },
     /// A dataset or release folder that is there already, or not as expected.
     #[error("{}: {why}", path.display())]
     Folder {

@@ -116,7 +116,7 @@ pub fn publish(options: &PublishOptions) -> Result<Release> {
         if !record.complete {
             return Err(Error::Folder {
                 path: dataset.clone(),
-                why: "an unfinished build (rmvp dataset build --resume completes it)".into(),
+                why: "an unfinished build; complete it before publishing".into(),
             });
         }
         let mut name = folder_name(&record.object);

@@ -48,6 +48,15 @@ pub fn hint(error: &anyhow::Error) -> Option<&'static str> {
             "hint: without Slurm, run the plan on this machine: rmvp batch run FILE -o DIR --local [--jobs N]",
         );
     }
+    let too_large = |e: &&(dyn std::error::Error + 'static)| {
+        matches!(e.downcast_ref::<rmvp_dataset::Error>(), Some(rmvp_dataset::Error::ImageTooLarge { .. }))
+    };
+    if error.chain().any(|e| too_large(&e)) {
+        return Some("hint: --max-pixels N raises the limit for one command");
+    }
+    if let Some(Pipeline::BuildUnfinished { .. }) = error.chain().find_map(|e| e.downcast_ref::<Pipeline>()) {
+        return Some("hint: run the same command with --resume to continue the build");
+    }
     let capture = error.chain().find_map(|e| e.downcast_ref::<Capture>())?;
     match capture {
         Capture::Session { .. } | Capture::DiskFull { .. } => {

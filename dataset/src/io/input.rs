@@ -46,13 +46,7 @@ pub fn set_max_pixels(pixels: u64) {
 pub fn check_pixels(path: &Path, width: u64, height: u64) -> Result<()> {
     let pixels = width.saturating_mul(height);
     if pixels > max_pixels() {
-        return Err(Error::format(
-            path,
-            format!(
-                "declares a {width}x{height} image, more than the limit of {} pixels (rmvp --max-pixels raises it)",
-                max_pixels()
-            ),
-        ));
+        return Err(Error::ImageTooLarge { path: path.to_path_buf(), width, height, limit: max_pixels() });
     }
     if width == 0 || height == 0 {
         return Err(Error::format(path, format!("declares an empty {width}x{height} image")));
