@@ -96,6 +96,7 @@ impl std::str::FromStr for TrainViews {
 
 /// A unit of length a scan may be stored in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum LengthUnit {
     /// Millimetres (Creaform and most scanners).
@@ -126,20 +127,6 @@ impl LengthUnit {
             LengthUnit::Cm => 10.0,
             LengthUnit::M => 1000.0,
             LengthUnit::In => 25.4,
-        }
-    }
-}
-
-impl std::str::FromStr for LengthUnit {
-    type Err = String;
-
-    fn from_str(text: &str) -> std::result::Result<Self, String> {
-        match text {
-            "mm" => Ok(LengthUnit::Mm),
-            "cm" => Ok(LengthUnit::Cm),
-            "m" => Ok(LengthUnit::M),
-            "in" => Ok(LengthUnit::In),
-            other => Err(format!("unknown unit {other:?} (mm, cm, m, in)")),
         }
     }
 }
@@ -765,11 +752,14 @@ mod tests {
     }
 
     #[test]
-    fn split_and_units_parse_as_the_command_line_gives_them() {
+    fn split_and_units_read_as_the_command_line_and_the_record_give_them() {
         assert_eq!("6".parse::<TrainViews>(), Ok(TrainViews::Count(6)));
         assert_eq!("000,007".parse::<TrainViews>(), Ok(TrainViews::Names(vec!["000".into(), "007".into()])));
         assert!("0".parse::<TrainViews>().is_err());
-        assert_eq!("in".parse::<LengthUnit>().map(LengthUnit::millimetres), Ok(25.4));
-        assert!("ft".parse::<LengthUnit>().is_err());
+        for unit in [LengthUnit::Mm, LengthUnit::Cm, LengthUnit::M, LengthUnit::In] {
+            let named: LengthUnit = serde_json::from_value(unit.name().into()).unwrap();
+            assert_eq!(named, unit);
+        }
+        assert!(serde_json::from_value::<LengthUnit>("ft".into()).is_err());
     }
 }

@@ -21,7 +21,7 @@ use crate::{Error, Result};
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_calib::masks::{make_masks, MaskMethod, MaskOptions, MASKS_FOLDER};
 use rmvp_calib::poses::{pose_session, PoseRequest, POSES_FILE};
-use rmvp_capture::camera::{Camera, CameraSettings};
+use rmvp_capture::camera::Camera;
 use rmvp_capture::session::positioning::Positioning;
 use rmvp_capture::session::{capture, SessionOptions, SessionReport};
 use rmvp_capture::simulator::{SimulatedCamera, SimulatedScene, SimulatorConfig};
@@ -40,7 +40,6 @@ use serde::{Deserialize, Serialize};
 use std::f32::consts::PI;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
-use std::time::Duration;
 
 /// What the demo runs; [`DemoOptions::default`] holds every default of `rmvp demo`.
 #[derive(Clone, Debug, PartialEq)]
@@ -302,20 +301,14 @@ fn remove_previous_demo(out: &Path) -> Result<()> {
 /// --dark 4` would.
 fn capture_session(simulator: &SimulatedCamera, dir: &Path, progress: bool) -> Result<SessionReport> {
     let mut camera = Camera::open(Some(&simulator.serial))?;
-    let settings = CameraSettings::default();
     let options = SessionOptions {
         object: DEMO_OBJECT.into(),
         views: DEMO_VIEWS,
         dir: dir.to_path_buf(),
-        exposures_us: vec![settings.exposure_us],
-        camera: settings,
-        average: 1,
         dark_frames: DEMO_DARK_FRAMES,
         positioning: Positioning::default_for(&camera),
-        resume: false,
-        frame_timeout: Duration::from_secs(5),
-        preview: None,
         progress,
+        ..SessionOptions::default()
     };
     Ok(capture(&mut camera, &options)?)
 }

@@ -20,7 +20,9 @@ use rmvp_dataset::{Camera, Scene, Split};
 use std::path::Path;
 
 /// A layout to export to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
 pub enum ExportFormat {
     /// nerfstudio's `transforms.json`.
     Nerfstudio,
@@ -30,20 +32,6 @@ pub enum ExportFormat {
     Rmvp3d,
     /// PANDORA's layout.
     Pandora,
-}
-
-impl std::str::FromStr for ExportFormat {
-    type Err = String;
-
-    fn from_str(text: &str) -> std::result::Result<Self, String> {
-        match text {
-            "nerfstudio" => Ok(ExportFormat::Nerfstudio),
-            "colmap" => Ok(ExportFormat::Colmap),
-            "rmvp3d" => Ok(ExportFormat::Rmvp3d),
-            "pandora" => Ok(ExportFormat::Pandora),
-            other => Err(format!("unknown format {other:?} (nerfstudio, colmap, rmvp3d, pandora)")),
-        }
-    }
 }
 
 /// Export the views of `scene` that have Stokes into `dir` (which must not exist or be empty).

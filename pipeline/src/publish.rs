@@ -34,24 +34,14 @@ pub const CONTACT_FOLDER: &str = "contact";
 const TILE_WIDTH: usize = 256;
 
 /// An archive of a whole release.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
 pub enum Archive {
     /// `RELEASE.tar` (uncompressed: the float arrays barely compress).
     Tar,
     /// `RELEASE.zip` (stored).
     Zip,
-}
-
-impl std::str::FromStr for Archive {
-    type Err = String;
-
-    fn from_str(text: &str) -> std::result::Result<Self, String> {
-        match text {
-            "tar" => Ok(Archive::Tar),
-            "zip" => Ok(Archive::Zip),
-            other => Err(format!("unknown archive {other:?} (tar, zip)")),
-        }
-    }
 }
 
 /// What to publish; [`PublishOptions::default`] holds `rmvp dataset publish`'s defaults.

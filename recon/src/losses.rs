@@ -28,16 +28,12 @@ pub enum Term {
 impl Term {
     /// Every term, in the order they are summed and logged.
     pub const ALL: [Term; 5] = [Term::Photometric, Term::Geometric, Term::Mask, Term::Eikonal, Term::Curvature];
+}
 
-    /// The term's name in logs and files.
-    pub fn name(self) -> &'static str {
-        match self {
-            Term::Photometric => "photometric",
-            Term::Geometric => "geometric",
-            Term::Mask => "mask",
-            Term::Eikonal => "eikonal",
-            Term::Curvature => "curvature",
-        }
+impl std::fmt::Display for Term {
+    /// The term's name in logs and files: its serde name.
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        self.serialize(f)
     }
 }
 
@@ -75,7 +71,7 @@ impl<T: Serialize> Serialize for PerTerm<T> {
     fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
         let mut map = serializer.serialize_map(Some(Term::ALL.len()))?;
         for (term, value) in Term::ALL.iter().zip(&self.0) {
-            map.serialize_entry(term.name(), value)?;
+            map.serialize_entry(&term, value)?;
         }
         map.end()
     }

@@ -5,15 +5,15 @@ use anyhow::Result;
 use rmvp_calib::board::{write_printable, Board, BoardKind, BoardSpec};
 use std::path::PathBuf;
 
-/// The printed board (defaults: the lab's ChArUco 8x6, 30 mm squares, 22 mm markers, 5X5_1000).
+/// The printed board (defaults: the lab's board, [`BoardSpec::default`]).
 #[derive(clap::Args, Clone, Debug)]
 pub struct BoardArgs {
     /// Board kind.
     #[arg(long = "board", value_enum, default_value_t = BoardSpec::default().kind)]
     pub kind: BoardKind,
     /// Squares along x and y, `XxY`.
-    #[arg(long, value_parser = parse_squares, default_value = "8x6")]
-    pub squares: [u32; 2],
+    #[arg(long, default_value_t = super::Pair(BoardSpec::default().squares[0], BoardSpec::default().squares[1]))]
+    pub squares: super::Pair,
     /// Side of a square, millimetres.
     #[arg(long, default_value_t = BoardSpec::default().square_mm)]
     pub square_mm: f64,
@@ -25,17 +25,12 @@ pub struct BoardArgs {
     pub dictionary: String,
 }
 
-fn parse_squares(text: &str) -> Result<[u32; 2], String> {
-    let (x, y) = super::parse_size(text)?;
-    Ok([x, y])
-}
-
 impl BoardArgs {
     /// The board described.
     pub fn spec(&self) -> BoardSpec {
         BoardSpec {
             kind: self.kind,
-            squares: self.squares,
+            squares: [self.squares.0, self.squares.1],
             square_mm: self.square_mm,
             marker_mm: self.marker_mm,
             dictionary: self.dictionary.clone(),

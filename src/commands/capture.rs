@@ -4,7 +4,7 @@
 use super::board::BoardArgs;
 use anyhow::{Context, Result};
 use rmvp_calib::lab::LabSetup;
-use rmvp_capture::camera::{describe, list_devices, Camera, CameraSettings, TriggerSource};
+use rmvp_capture::camera::{describe, list_devices, Camera, CameraSettings};
 use rmvp_capture::preview::{serve, Preview};
 use rmvp_capture::session::positioning::Positioning;
 use rmvp_capture::session::{capture, check_session_folder, SessionOptions};
@@ -22,7 +22,7 @@ pub struct Args {
     #[arg(long)]
     pub object: String,
     /// Views to capture (RMVP3D: about 60 per object).
-    #[arg(long, default_value_t = 60)]
+    #[arg(long, default_value_t = SessionOptions::default().views)]
     pub views: usize,
     /// Session folder.
     #[arg(short, long)]
@@ -34,19 +34,19 @@ pub struct Args {
     #[arg(long)]
     pub simulated: bool,
     /// Exposure time in microseconds.
-    #[arg(long, default_value_t = 20_000.0)]
+    #[arg(long, default_value_t = SessionOptions::default().camera.exposure_us)]
     pub exposure: f64,
     /// Analog gain in dB.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = SessionOptions::default().camera.gain_db)]
     pub gain: f64,
     /// HDR bracketing: exposure times in microseconds, comma-separated (replaces --exposure).
     #[arg(long, value_delimiter = ',')]
     pub hdr: Vec<f64>,
     /// Frames averaged per exposure.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = SessionOptions::default().average)]
     pub average: usize,
     /// Dark frames (lens covered) averaged per exposure at the start; 0: none.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = SessionOptions::default().dark_frames)]
     pub dark: usize,
     /// Continue the session in --output after its last complete view.
     #[arg(long)]
@@ -74,7 +74,7 @@ pub struct Args {
     #[command(flatten)]
     pub scene: SetupArgs,
     /// Seconds to wait for one frame before checking that the camera is still there.
-    #[arg(long, default_value_t = 5.0)]
+    #[arg(long, default_value_t = SessionOptions::default().frame_timeout.as_secs_f64())]
     pub frame_timeout: f64,
 }
 
@@ -101,8 +101,6 @@ pub fn run(args: Args) -> Result<()> {
         None => Positioning::default_for(&camera),
         Some(mode) => Positioning::new(mode, Duration::from_secs_f64(args.interval)),
     };
-    let trigger =
-        if positioning == Positioning::HardwareTrigger { TriggerSource::Line0 } else { TriggerSource::FreeRun };
     let preview = args.preview.map(|_| Arc::new(Preview::default()));
     let _server = match (args.preview, &preview) {
         (Some(address), Some(preview)) => {
@@ -121,7 +119,7 @@ pub fn run(args: Args) -> Result<()> {
             exposure_us: args.exposure,
             gain_db: args.gain,
             frame_rate: args.frame_rate,
-            trigger,
+            ..CameraSettings::default()
         },
         exposures_us: if args.hdr.is_empty() { vec![args.exposure] } else { args.hdr.clone() },
         average: args.average,

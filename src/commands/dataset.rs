@@ -57,8 +57,8 @@ pub struct BuildArgs {
     /// reconstruction from all views, it gives the ground truth (mesh, normals, depth).
     #[arg(long)]
     scan: Option<PathBuf>,
-    /// The scan's unit of length: mm, cm, m or in (checked where the world is in millimetres).
-    #[arg(long, value_parser = str::parse::<LengthUnit>, default_value = "mm")]
+    /// The scan's unit of length (checked where the world is in millimetres).
+    #[arg(long, value_enum, default_value_t = LengthUnit::Mm)]
     scan_units: LengthUnit,
     /// An equirectangular panorama (EXR, HDR, PNG or JPEG): the environment map, turned into
     /// the world frame.
@@ -96,8 +96,8 @@ pub struct PublishArgs {
     /// Title of the datasheet.
     #[arg(long, default_value_t = PublishOptions::default().title)]
     title: String,
-    /// Also write the release as one archive beside it: tar or zip.
-    #[arg(long, value_parser = str::parse::<Archive>)]
+    /// Also write the release as one archive beside it.
+    #[arg(long, value_enum)]
     archive: Option<Archive>,
 }
 
@@ -106,8 +106,8 @@ pub struct PublishArgs {
 pub struct ExportArgs {
     /// Scene folder (either layout), e.g. a dataset's `rmvp/`.
     scene: PathBuf,
-    /// nerfstudio, colmap, rmvp3d or pandora.
-    #[arg(long, value_parser = str::parse::<ExportFormat>)]
+    /// The layout to write.
+    #[arg(long, value_enum)]
     format: ExportFormat,
     /// Output folder (new or empty).
     #[arg(short, long)]

@@ -27,11 +27,25 @@ pub fn parse_numbers<const N: usize>(text: &str) -> Result<[f32; N], String> {
     values.try_into().map_err(|v: Vec<f32>| format!("expected {N} comma-separated numbers, got {}", v.len()))
 }
 
-/// Parse an image size `WIDTHxHEIGHT`.
-pub fn parse_size(text: &str) -> Result<(u32, u32), String> {
-    let (w, h) = text.split_once('x').ok_or("expected WIDTHxHEIGHT, e.g. 1224x1024")?;
-    let number = |s: &str| s.parse::<u32>().map_err(|e| format!("{s:?}: {e}"));
-    Ok((number(w)?, number(h)?))
+/// Two counts written `AxB` on the command line (an image size, a board's squares); the
+/// defaults come from the libraries' values through it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Pair(pub u32, pub u32);
+
+impl std::fmt::Display for Pair {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(f, "{}x{}", self.0, self.1)
+    }
+}
+
+impl std::str::FromStr for Pair {
+    type Err = String;
+
+    fn from_str(text: &str) -> Result<Self, String> {
+        let (a, b) = text.split_once('x').ok_or_else(|| format!("{text:?}: expected two numbers as AxB, e.g. 8x6"))?;
+        let number = |s: &str| s.parse::<u32>().map_err(|e| format!("{s:?}: {e}"));
+        Ok(Pair(number(a)?, number(b)?))
+    }
 }
 
 /// A visible progress bar over `len` items, labelled `what`.

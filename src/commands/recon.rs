@@ -40,7 +40,7 @@ pub fn run(args: Args) -> Result<()> {
             Some(event) => bar.println(format!("iteration {}: {event}", report.iteration)),
             None if report.iteration % 10 == 0 => {
                 let terms: Vec<String> =
-                    report.losses.iter().map(|(term, value)| format!("{} {value:.4}", term.name())).collect();
+                    report.losses.iter().map(|(term, value)| format!("{term} {value:.4}")).collect();
                 bar.set_message(format!("loss {:.4} ({}) s {:.0}", report.loss, terms.join(" "), report.inv_s))
             }
             None => {}

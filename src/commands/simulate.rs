@@ -32,8 +32,8 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["rig", "views"])]
     poses: Option<PathBuf>,
     /// Image size WIDTHxHEIGHT (even; the rig's intrinsics are scaled to it).
-    #[arg(long, value_parser = super::parse_size, default_value = "1224x1024")]
-    res: (u32, u32),
+    #[arg(long, default_value_t = super::Pair(SimulateOptions::default().size.0, SimulateOptions::default().size.1))]
+    res: super::Pair,
     /// Samples per pixel.
     #[arg(long, default_value_t = SimulateOptions::default().spp)]
     spp: u32,
@@ -69,7 +69,7 @@ pub fn run(args: Args) -> Result<()> {
         eval_views: args.eval_views,
         rig: args.rig,
         poses: args.poses,
-        size: args.res,
+        size: (args.res.0, args.res.1),
         spp: args.spp,
         env: args.env,
         texture: args.texture,

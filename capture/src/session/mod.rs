@@ -61,7 +61,8 @@ pub struct SessionOptions {
     pub views: usize,
     /// Session folder.
     pub dir: PathBuf,
-    /// Camera settings (its exposure is replaced by each of `exposures_us`).
+    /// Camera settings (its exposure is replaced by each of `exposures_us`, its trigger by the
+    /// positioning's).
     pub camera: CameraSettings,
     /// Exposure times per view, microseconds (several: HDR bracketing).
     pub exposures_us: Vec<f64>,
@@ -79,6 +80,29 @@ pub struct SessionOptions {
     pub preview: Option<Arc<Preview>>,
     /// Show a progress bar.
     pub progress: bool,
+}
+
+impl Default for SessionOptions {
+    /// `rmvp capture`'s defaults: 60 views of "object" into `session/`, one 20 ms exposure
+    /// ([`CameraSettings::default`]), no averaging, no dark frames, the operator positioning
+    /// each view, 5 s for a frame to arrive.
+    fn default() -> Self {
+        let camera = CameraSettings::default();
+        Self {
+            object: "object".into(),
+            views: 60,
+            dir: PathBuf::from("session"),
+            exposures_us: vec![camera.exposure_us],
+            camera,
+            average: 1,
+            dark_frames: 0,
+            positioning: Positioning::Interactive,
+            resume: false,
+            frame_timeout: Duration::from_secs(5),
+            preview: None,
+            progress: true,
+        }
+    }
 }
 
 /// How a session run ended.
@@ -122,6 +146,7 @@ pub fn capture(camera: &mut Camera, options: &SessionOptions) -> Result<SessionR
     let dir = options.dir.as_path();
     let mut settings = options.camera.clone();
     settings.exposure_us = options.exposures_us[0];
+    settings.trigger = options.positioning.trigger();
     let format = camera.configure(&settings)?;
     let mut manifest = open_manifest(camera, options, &settings, format)?;
     clean_incomplete(dir, &manifest)?;
@@ -339,7 +364,7 @@ fn grab_frames(
 ) -> Result<Vec<Vec<u8>>> {
     let (format, width, height) = camera.frame_format();
     let expected = format.frame_bytes(width, height);
-    let free_running = options.camera.trigger == TriggerSource::FreeRun;
+    let free_running = options.positioning.trigger() == TriggerSource::FreeRun;
     let mut settle = usize::from(free_running);
     let mut frames = Vec::with_capacity(count);
     let mut failures = 0;

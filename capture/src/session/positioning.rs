@@ -2,6 +2,7 @@
 //! Enter), a timer, a hardware trigger on `Line0`, or the simulated rig's motorised turntable.
 
 use crate::camera::Camera;
+use crate::camera::TriggerSource;
 use crate::{Error, Result};
 use rmvp_dataset::session::PositioningMode;
 use std::io::BufRead;
@@ -39,6 +40,15 @@ impl Positioning {
             PositioningMode::Timed => Positioning::Timed(interval),
             PositioningMode::Trigger => Positioning::HardwareTrigger,
             PositioningMode::Turntable => Positioning::Turntable,
+        }
+    }
+
+    /// How the camera's frames start under this positioning: the `Line0` input for a hardware
+    /// trigger, free running otherwise.
+    pub fn trigger(&self) -> TriggerSource {
+        match self {
+            Positioning::HardwareTrigger => TriggerSource::Line0,
+            _ => TriggerSource::FreeRun,
         }
     }
 
