@@ -232,7 +232,7 @@ fn dataset_stage(root: &Path, lab: &Path, camera: &Path, truth: &SimulatedScene)
         reference.preset, reference.iterations, reference.mesh_resolution
     );
     for stage in &record.stages {
-        println!("  build {:<13}                    {:7.1} s", stage.name, stage.seconds);
+        println!("  build {:<13}                    {:7.1} s", stage.name.to_string(), stage.seconds);
     }
     println!("  build in all                            {total:7.1} s");
     let t = rmvp(&["dataset", "publish", s(&dataset), "-o", s(&release), "--archive", "tar"]);

@@ -31,7 +31,10 @@ fn demo_captures_builds_a_dataset_and_reconstructs_it() {
     // in both layouts, its Stokes the session's own.
     assert!(report.dataset.complete && report.dataset.train.len() == 6, "{report:?}");
     let record = rmvp_pipeline::build::BuildRecord::read(&out.join("dataset")).unwrap();
-    assert!(record.complete && record.stages.iter().any(|s| s.name == "layouts"), "{record:?}");
+    assert!(
+        record.complete && record.stages.iter().any(|s| s.name == rmvp_pipeline::build::Stage::Layouts),
+        "{record:?}"
+    );
     for layout in ["nersp", "rmvp"] {
         let info = ok(&["dataset", "info", s(&out.join("dataset").join(layout))]);
         assert!(info.contains("6 (6 train, 0 eval)"), "{info}");

@@ -22,7 +22,7 @@ use rmvp_capture::simulator::{SimulatedScene, SimulatedSetup, SimulatorConfig};
 use rmvp_dataset::io::png;
 use rmvp_dataset::layout::{read_scene, write_scene, Layout};
 use rmvp_dataset::{Camera, Mesh};
-use rmvp_pipeline::build::BuildRecord;
+use rmvp_pipeline::build::{BuildRecord, Stage};
 use rmvp_pipeline::ground_truth::mask_iou;
 use rmvp_render::envmap::procedural_image;
 use rmvp_render::EnvMap;
@@ -185,7 +185,7 @@ fn a_lab_session_becomes_posed_masked_views() {
     let err = build(&[], fails);
     assert!(err.contains("scan.ply") && err.contains("wrong units"), "{err}");
     let record = BuildRecord::read(&dataset).unwrap();
-    assert!(!record.complete && record.stages.iter().any(|s| s.name == "reference"), "{record:?}");
+    assert!(!record.complete && record.stages.iter().any(|s| s.name == Stage::Reference), "{record:?}");
     assert!(!dataset.join("nersp").exists() && !dataset.join("rmvp").exists());
     let err = build(&[], fails);
     assert!(err.contains("unfinished build") && err.contains("--resume"), "{err}");

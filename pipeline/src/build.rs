@@ -44,7 +44,7 @@ use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::layout::{write_scene, Layout};
 use rmvp_dataset::progress::progress_bar;
 use rmvp_dataset::session::SessionManifest;
-use rmvp_dataset::{Camera, Mesh, Split};
+use rmvp_dataset::{Camera, Image, Mesh, Scene, Split};
 use rmvp_recon::model::Preset;
 use rmvp_recon::options::{ReconOptions, RunControl};
 use rmvp_recon::reconstruct::{reconstruct, MESH};
@@ -280,8 +280,8 @@ pub struct EnvironmentSummary {
 /// One finished stage.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StageRecord {
-    /// `views`, `reference`, `scan`, `ground-truth`, `environment`, `layouts`.
-    pub name: String,
+    /// The stage.
+    pub name: Stage,
     /// Wall time, seconds (of the run that finished it).
     pub seconds: f64,
 }
@@ -338,7 +338,7 @@ impl BuildRecord {
         Ok(write_json(&dataset.join(BUILD_FILE), self)?)
     }
 
-    fn done(&self, stage: &str) -> bool {
+    fn done(&self, stage: Stage) -> bool {
         self.stages.iter().any(|s| s.name == stage)
     }
 }
@@ -405,7 +405,7 @@ fn start(options: &BuildOptions) -> Result<Option<BuildRecord>> {
     if out.join(BUILD_FILE).is_file() {
         let record = BuildRecord::read(out)?;
         if !options.resume {
-            let done: Vec<&str> = record.stages.iter().map(|s| s.name.as_str()).collect();
+            let done: Vec<String> = record.stages.iter().map(|s| s.name.to_string()).collect();
             return Err(if record.complete {
                 folder("a complete dataset is here already; remove it or build into another folder".into())
             } else {
@@ -427,192 +427,247 @@ fn start(options: &BuildOptions) -> Result<Option<BuildRecord>> {
 /// Build the dataset of `options` (or continue it) and return its record.
 pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
     let session = &options.session;
-    let out = &options.output;
-    let poses_file = session.join(POSES_FILE);
-    if !poses_file.is_file() {
+    if !session.join(POSES_FILE).is_file() {
         return Err(Error::Unprepared { session: session.clone(), missing: "camera poses (poses.json)" });
     }
     if !session.join(MASKS_FOLDER).is_dir() {
         return Err(Error::Unprepared { session: session.clone(), missing: "object masks (masks/)" });
     }
-    let reference_iterations = options.reference.iterations();
     let previous = start(options)?;
-    if let Some(record) = &previous {
-        if record.complete {
-            return Ok(record.clone());
-        }
+    if let Some(record) = previous.as_ref().filter(|r| r.complete) {
+        return Ok(record.clone());
     }
     // Inputs are checked before any work: a wrong panorama fails now, not after an hour.
-    let panorama = options.panorama.as_ref().map(|p| read_panorama(&p.path)).transpose()?;
-    if let Some(scan) = &options.scan {
-        if !scan.path.is_file() {
-            return Err(Error::Scan { path: scan.path.clone(), why: "no such file".into() });
-        }
+    let panorama = options.panorama.as_ref().map(|p| read_panorama(&p.path).map(|image| (p, image))).transpose()?;
+    if let Some(scan) = options.scan.as_ref().filter(|s| !s.path.is_file()) {
+        return Err(Error::Scan { path: scan.path.clone(), why: "no such file".into() });
     }
-    std::fs::create_dir_all(out).map_err(|e| rmvp_dataset::Error::io(out, e))?;
+    std::fs::create_dir_all(&options.output).map_err(|e| rmvp_dataset::Error::io(&options.output, e))?;
 
-    // 1. Views.
-    let clock = Instant::now();
-    let manifest = SessionManifest::read(session)?;
-    manifest.require_views(session)?;
-    let poses = PoseSet::read(&poses_file)?;
-    let cameras: Vec<(String, Camera)> =
-        poses.views.iter().filter_map(|v| Some((v.name.clone(), Camera::try_from(&v.camera).ok()?))).collect();
-    // The split needs the object's centre: a first scene (all views evaluation) gives it.
-    let all = posed_scene(session, &poses, None, &[])?;
-    let centre = all.normalization.fixed_view::<3, 1>(0, 3).into_owned();
-    let train = match &options.train {
-        TrainViews::Count(n) => spread_views(&cameras, &centre, *n),
-        TrainViews::Names(names) => names.clone(),
-    };
-    let mut scene = all;
-    for view in &mut scene.views {
-        view.split = if train.contains(&view.name) { Split::Train } else { Split::Eval };
-    }
-    let missing: Vec<&String> = train.iter().filter(|t| scene.view(t).is_none()).collect();
-    if !missing.is_empty() {
-        return Err(Error::Folder {
-            path: session.clone(),
-            why: format!("training views {missing:?} are not posed and masked views of the session"),
-        });
-    }
-    scene.views = scene.views.par_iter().map(undistort_view).collect();
-    // Training views first, as the layouts number them.
-    scene.views.sort_by_key(|v| v.split != Split::Train);
-    let residuals: Vec<f64> = poses.views.iter().filter_map(|v| v.residual_px).collect();
-    let calibration = options
-        .calibration
-        .as_ref()
-        .map(|path| -> Result<CalibrationSummary> {
-            let c = CameraCalibration::read(path)?;
-            Ok(CalibrationSummary { rms_px: c.rms_px, k_std_px: c.k_std_px, images: c.images.len() })
-        })
-        .transpose()?;
-    let first = &scene.views[0].camera;
-    let mut record = previous.unwrap_or_else(|| BuildRecord {
-        format: BUILD_FORMAT.into(),
-        options: options.clone(),
-        object: manifest.object.clone(),
-        camera: serde_json::to_value(&manifest.camera).expect("plain"),
-        settings: serde_json::to_value(&manifest.settings).expect("plain"),
-        views: Vec::new(),
-        train: Vec::new(),
-        size: [first.width, first.height],
-        poses: PoseSummary {
-            method: serde_json::to_value(poses.method).expect("plain"),
-            world: poses.world.clone(),
-            residual_px_mean: (!residuals.is_empty()).then(|| residuals.iter().sum::<f64>() / residuals.len() as f64),
-            residual_px_max: residuals.iter().copied().reduce(f64::max),
-            failed: poses.failed.iter().map(|f| f.name.clone()).collect(),
-        },
-        calibration,
-        reference: None,
-        scan: None,
-        environment: None,
-        stages: Vec::new(),
-        complete: false,
-    });
-    record.views = scene.views.iter().map(|v| v.name.clone()).collect();
-    record.train = train.clone();
-    finish_stage(&mut record, out, "views", clock)?;
-
+    let mut build = Build::views(options, previous)?;
     if let Some(scan) = &options.scan {
-        // 2. The reference shape from all views.
-        let reference_dir = out.join(REFERENCE_FOLDER);
-        if !record.done("reference") {
-            let clock = Instant::now();
-            let mut everything = scene.clone();
-            for view in &mut everything.views {
-                view.split = Split::Train;
-            }
-            let control = RunControl { resume: options.resume, stop_after: None };
-            let bar = progress_bar(options.progress, reference_iterations as u64, "reference");
-            reconstruct(&everything, &reference_dir, &options.reference, control, |report, _| {
-                bar.set_position(report.iteration as u64 + 1);
-                ControlFlow::Continue(())
-            })?;
-            bar.finish();
-            record.reference = Some(ReferenceSummary {
-                preset: options.reference.preset,
-                iterations: reference_iterations,
-                views: everything.views.len(),
-                mesh_resolution: options.reference.mesh_res,
-            });
-            finish_stage(&mut record, out, "reference", clock)?;
-        }
-        // 3. The scan onto it.
-        let scan_dir = out.join(SCAN_FOLDER);
-        if !record.done("scan") {
-            let clock = Instant::now();
-            let reference = Mesh::read(&reference_dir.join(MESH))?;
-            let summary = align_scan(scan, &reference, world_in_millimetres(&poses), &scan_dir)?;
-            record.scan = Some(summary);
-            finish_stage(&mut record, out, "scan", clock)?;
-        }
-        // 4. Ground truth from the aligned scan (ray casting: seconds, done again on resume).
+        build.reference()?;
+        build.align(scan)?;
+        build.ground_truth()?;
+    }
+    if let Some((input, panorama)) = &panorama {
+        build.environment(input, panorama)?;
+    }
+    build.layouts()
+}
+
+/// The stages of a build, in order; each finished one is kept in `build.json`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stage {
+    /// The posed, masked views, split and undistorted.
+    Views,
+    /// The reference shape from all views (with a scan).
+    Reference,
+    /// The scan aligned onto the reference.
+    Scan,
+    /// Ground truth (mesh, normals, depth) from the aligned scan: seconds, done again on resume.
+    GroundTruth,
+    /// The environment map from the panorama: done again on resume.
+    Environment,
+    /// Both layouts, each written aside and moved into place whole.
+    Layouts,
+}
+
+impl std::fmt::Display for Stage {
+    /// The stage's name in `build.json`.
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        self.serialize(f)
+    }
+}
+
+/// A build under way: what each stage needs from those before it.
+struct Build<'a> {
+    options: &'a BuildOptions,
+    record: BuildRecord,
+    poses: PoseSet,
+    scene: Scene,
+}
+
+impl<'a> Build<'a> {
+    /// Stage [`Stage::Views`]: the session's posed, masked views, split into training and
+    /// evaluation views and undistorted; the record started (or `previous` continued).
+    fn views(options: &'a BuildOptions, previous: Option<BuildRecord>) -> Result<Self> {
         let clock = Instant::now();
-        let aligned = Mesh::read(&scan_dir.join(ALIGNED_MESH))?;
-        let ious = set_ground_truth(&mut scene, &aligned)?;
-        let summary = record.scan.as_mut().expect("scan stage done");
+        let session = &options.session;
+        let manifest = SessionManifest::read(session)?;
+        manifest.require_views(session)?;
+        let poses = PoseSet::read(&session.join(POSES_FILE))?;
+        let cameras: Vec<(String, Camera)> =
+            poses.views.iter().filter_map(|v| Some((v.name.clone(), Camera::try_from(&v.camera).ok()?))).collect();
+        // The split needs the object's centre: a first scene (all views evaluation) gives it.
+        let mut scene = posed_scene(session, &poses, None, &[])?;
+        let centre = scene.normalization.fixed_view::<3, 1>(0, 3).into_owned();
+        let train = match &options.train {
+            TrainViews::Count(n) => spread_views(&cameras, &centre, *n),
+            TrainViews::Names(names) => names.clone(),
+        };
+        for view in &mut scene.views {
+            view.split = if train.contains(&view.name) { Split::Train } else { Split::Eval };
+        }
+        let missing: Vec<&String> = train.iter().filter(|t| scene.view(t).is_none()).collect();
+        if !missing.is_empty() {
+            return Err(Error::Folder {
+                path: session.clone(),
+                why: format!("training views {missing:?} are not posed and masked views of the session"),
+            });
+        }
+        scene.views = scene.views.par_iter().map(undistort_view).collect();
+        // Training views first, as the layouts number them.
+        scene.views.sort_by_key(|v| v.split != Split::Train);
+        scene.metadata.insert("train".into(), serde_json::to_value(&train).expect("plain"));
+        let residuals: Vec<f64> = poses.views.iter().filter_map(|v| v.residual_px).collect();
+        let calibration = options
+            .calibration
+            .as_ref()
+            .map(|path| -> Result<CalibrationSummary> {
+                let c = CameraCalibration::read(path)?;
+                Ok(CalibrationSummary { rms_px: c.rms_px, k_std_px: c.k_std_px, images: c.images.len() })
+            })
+            .transpose()?;
+        let first = &scene.views[0].camera;
+        let mut record = previous.unwrap_or_else(|| BuildRecord {
+            format: BUILD_FORMAT.into(),
+            options: options.clone(),
+            object: manifest.object.clone(),
+            camera: serde_json::to_value(&manifest.camera).expect("plain"),
+            settings: serde_json::to_value(&manifest.settings).expect("plain"),
+            views: Vec::new(),
+            train: Vec::new(),
+            size: [first.width, first.height],
+            poses: PoseSummary {
+                method: serde_json::to_value(poses.method).expect("plain"),
+                world: poses.world.clone(),
+                residual_px_mean: (!residuals.is_empty())
+                    .then(|| residuals.iter().sum::<f64>() / residuals.len() as f64),
+                residual_px_max: residuals.iter().copied().reduce(f64::max),
+                failed: poses.failed.iter().map(|f| f.name.clone()).collect(),
+            },
+            calibration,
+            reference: None,
+            scan: None,
+            environment: None,
+            stages: Vec::new(),
+            complete: false,
+        });
+        record.views = scene.views.iter().map(|v| v.name.clone()).collect();
+        record.train = train;
+        let mut build = Build { options, record, poses, scene };
+        build.finish(Stage::Views, clock)?;
+        Ok(build)
+    }
+
+    /// Stage [`Stage::Reference`]: the reference shape from all views (resumed from its
+    /// checkpoint when the build is).
+    fn reference(&mut self) -> Result<()> {
+        if self.record.done(Stage::Reference) {
+            return Ok(());
+        }
+        let (clock, options) = (Instant::now(), self.options);
+        let mut everything = self.scene.clone();
+        for view in &mut everything.views {
+            view.split = Split::Train;
+        }
+        let control = RunControl { resume: options.resume, stop_after: None };
+        let iterations = options.reference.iterations();
+        let bar = progress_bar(options.progress, iterations as u64, "reference");
+        let folder = options.output.join(REFERENCE_FOLDER);
+        reconstruct(&everything, &folder, &options.reference, control, |report, _| {
+            bar.set_position(report.iteration as u64 + 1);
+            ControlFlow::Continue(())
+        })?;
+        bar.finish();
+        self.record.reference = Some(ReferenceSummary {
+            preset: options.reference.preset,
+            iterations,
+            views: everything.views.len(),
+            mesh_resolution: options.reference.mesh_res,
+        });
+        self.finish(Stage::Reference, clock)
+    }
+
+    /// Stage [`Stage::Scan`]: the scan aligned onto the reference shape.
+    fn align(&mut self, scan: &ScanInput) -> Result<()> {
+        if self.record.done(Stage::Scan) {
+            return Ok(());
+        }
+        let clock = Instant::now();
+        let reference = Mesh::read(&self.options.output.join(REFERENCE_FOLDER).join(MESH))?;
+        let folder = self.options.output.join(SCAN_FOLDER);
+        self.record.scan = Some(align_scan(scan, &reference, world_in_millimetres(&self.poses), &folder)?);
+        self.finish(Stage::Scan, clock)
+    }
+
+    /// Stage [`Stage::GroundTruth`]: mesh, normals and depth of every view from the aligned
+    /// scan, and how well the captured masks agree with its silhouettes.
+    fn ground_truth(&mut self) -> Result<()> {
+        let clock = Instant::now();
+        let aligned = Mesh::read(&self.options.output.join(SCAN_FOLDER).join(ALIGNED_MESH))?;
+        let ious = set_ground_truth(&mut self.scene, &aligned)?;
+        let summary = self.record.scan.as_mut().expect("the scan stage is done");
         summary.mask_iou_mean = ious.iter().map(|(iou, _)| iou).sum::<f64>() / ious.len().max(1) as f64;
         summary.mask_iou_min = ious.iter().cloned().min_by(|a, b| a.0.total_cmp(&b.0)).unwrap_or((1.0, String::new()));
-        scene.metadata.insert("scan_alignment".into(), serde_json::to_value(&*summary).expect("plain"));
-        if !record.done("ground-truth") {
-            finish_stage(&mut record, out, "ground-truth", clock)?;
-        }
+        self.scene.metadata.insert("scan_alignment".into(), serde_json::to_value(&*summary).expect("plain"));
+        self.finish(Stage::GroundTruth, clock)
     }
 
-    // 5. The environment map.
-    if let (Some(input), Some(panorama)) = (&options.panorama, &panorama) {
+    /// Stage [`Stage::Environment`]: the panorama turned into the world frame.
+    fn environment(&mut self, input: &PanoramaInput, panorama: &Image<f32>) -> Result<()> {
         let clock = Instant::now();
-        let base = if world_in_millimetres(&poses) { board_to_y_up() } else { Matrix3::identity() };
+        let base = if world_in_millimetres(&self.poses) { board_to_y_up() } else { Matrix3::identity() };
         let rotation = world_to_panorama(&base, input.yaw_deg);
-        scene.env_map = Some(to_world(panorama, &rotation)?);
+        self.scene.env_map = Some(to_world(panorama, &rotation)?);
         let summary = EnvironmentSummary {
             file: input.path.clone(),
             size: [panorama.width(), panorama.height()],
             world_to_panorama: [0, 1, 2].map(|r| [0, 1, 2].map(|c| rotation[(r, c)])),
             convention: ENV_CONVENTION.into(),
         };
-        scene.metadata.insert("environment".into(), serde_json::to_value(&summary).expect("plain"));
-        record.environment = Some(summary);
-        if !record.done("environment") {
-            finish_stage(&mut record, out, "environment", clock)?;
-        }
+        self.scene.metadata.insert("environment".into(), serde_json::to_value(&summary).expect("plain"));
+        self.record.environment = Some(summary);
+        self.finish(Stage::Environment, clock)
     }
 
-    // 6. Both layouts, each written aside and moved into place whole.
-    let clock = Instant::now();
-    scene.metadata.insert("train".into(), serde_json::to_value(&train).expect("plain"));
-    for layout in DATASET_LAYOUTS {
-        let (final_dir, partial) = (out.join(layout.name()), out.join(format!("{}.partial", layout.name())));
-        for dir in [&final_dir, &partial] {
-            if dir.exists() {
-                std::fs::remove_dir_all(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
+    /// Stage [`Stage::Layouts`]: both layouts, each written aside and moved into place whole;
+    /// the build complete.
+    fn layouts(mut self) -> Result<BuildRecord> {
+        let clock = Instant::now();
+        let out = &self.options.output;
+        for layout in DATASET_LAYOUTS {
+            let (final_dir, partial) = (out.join(layout.name()), out.join(format!("{}.partial", layout.name())));
+            for dir in [&final_dir, &partial] {
+                if dir.exists() {
+                    std::fs::remove_dir_all(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
+                }
             }
+            write_scene(&self.scene, &partial, layout)?;
+            std::fs::rename(&partial, &final_dir).map_err(|e| rmvp_dataset::Error::io(&final_dir, e))?;
         }
-        write_scene(&scene, &partial, layout)?;
-        std::fs::rename(&partial, &final_dir).map_err(|e| rmvp_dataset::Error::io(&final_dir, e))?;
+        self.record.complete = true;
+        self.finish(Stage::Layouts, clock)?;
+        Ok(self.record)
     }
-    finish_stage(&mut record, out, "layouts", clock)?;
-    record.complete = true;
-    record.write(out)?;
-    Ok(record)
+
+    /// Record `stage` as finished (its time, that of this run) in `build.json`.
+    fn finish(&mut self, stage: Stage, clock: Instant) -> Result<()> {
+        let seconds = clock.elapsed().as_secs_f64();
+        match self.record.stages.iter_mut().find(|s| s.name == stage) {
+            Some(done) => done.seconds = seconds,
+            None => self.record.stages.push(StageRecord { name: stage, seconds }),
+        }
+        self.record.write(&self.options.output)
+    }
 }
 
 /// The mapping of a dataset's environment map (see [`crate::panorama`]).
 pub const ENV_CONVENTION: &str = "lat-long, linear RGB; texel (i, j) of W x H holds the radiance arriving from the \
 world direction (sin t sin p, cos t, -sin t cos p), p = 2 pi (i + 0.5) / W, t = pi (j + 0.5) / H (Mitsuba 3's \
 envmap mapping of world directions)";
-
-fn finish_stage(record: &mut BuildRecord, out: &Path, name: &str, clock: Instant) -> Result<()> {
-    let seconds = clock.elapsed().as_secs_f64();
-    match record.stages.iter_mut().find(|s| s.name == name) {
-        Some(stage) => stage.seconds = seconds,
-        None => record.stages.push(StageRecord { name: name.into(), seconds }),
-    }
-    record.write(out)
-}
 
 /// Align `scan` onto `reference` (world frame) by ICP with scale, check it (its units where
 /// the world is in millimetres, `world_mm`, then refit rigidly at the scale they give; its

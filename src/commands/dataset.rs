@@ -281,7 +281,7 @@ fn build(args: BuildArgs) -> Result<()> {
         );
     }
     for stage in &record.stages {
-        println!("  {:<13} {:>8.1} s", stage.name, stage.seconds);
+        println!("  {:<13} {:>8.1} s", stage.name.to_string(), stage.seconds);
     }
     Ok(())
 }
