@@ -11,8 +11,9 @@ use rmvp_dataset::rng::Rng;
 use rmvp_recon::cuda::CudaSdf;
 use rmvp_recon::data::{Frame, TrainingSet};
 use rmvp_recon::extract::{extract_mesh, CpuSdf, SdfEvaluator};
-use rmvp_recon::model::{Model, ModelConfig, Preset};
-use rmvp_recon::train::{TrainConfig, Trainer};
+use rmvp_recon::model::Model;
+use rmvp_recon::presets::{self, Preset};
+use rmvp_recon::train::Trainer;
 use std::time::Instant;
 
 fn seconds(start: Instant) -> f64 {
@@ -29,7 +30,7 @@ struct Subject {
 }
 
 fn bumpy(preset: Preset) -> Subject {
-    let model = Model::new(ModelConfig::preset(preset));
+    let model = Model::new(presets::model(preset));
     let mut params = model.init(1);
     let mut rng = Rng::for_pixel(2, 0, 0);
     for (i, p) in params.iter_mut().enumerate() {
@@ -42,7 +43,7 @@ fn bumpy(preset: Preset) -> Subject {
 
 fn trained(scene: &str, iterations: u32) -> Subject {
     let scene = read_scene(std::path::Path::new(scene)).expect("scene");
-    let config = TrainConfig::preset(Preset::Fast, iterations);
+    let config = presets::training(Preset::Fast, iterations);
     let set = TrainingSet::from_scene(&scene, config.margin).expect("training set");
     let mut trainer = Trainer::new(config, set);
     let start = Instant::now();

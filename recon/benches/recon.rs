@@ -5,8 +5,8 @@
 
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::data::TrainingSet;
-use rmvp_recon::model::Preset;
-use rmvp_recon::train::{TrainConfig, Trainer};
+use rmvp_recon::presets::{self, Preset};
+use rmvp_recon::train::Trainer;
 use std::time::Instant;
 
 fn main() {
@@ -26,7 +26,7 @@ fn main() {
         for threads in [1, 2] {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
             pool.install(|| {
-                let config = TrainConfig::preset(preset, 3_000);
+                let config = presets::training(preset, 3_000);
                 let set = TrainingSet::from_scene(&scene, config.margin).expect("training set");
                 let mut trainer = Trainer::new(config, set);
                 // Past the diffuse-only warm-up, so that every loss and network runs.

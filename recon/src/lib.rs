@@ -30,6 +30,7 @@ pub mod model;
 pub mod options;
 pub mod output;
 pub mod pbrdf;
+pub mod presets;
 pub mod reconstruct;
 pub mod samples;
 pub mod trace;

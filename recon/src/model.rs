@@ -5,37 +5,9 @@
 use crate::engine::encoding::{ide, positional_encoding, IDE_WIDTH};
 use crate::engine::{hashgrid, Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
 use crate::pbrdf::{degrees, dot, double_azimuth};
+use crate::presets::Preset;
 use rmvp_dataset::rng::Rng;
 use serde::{Deserialize, Serialize};
-
-/// The two model presets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
-#[serde(rename_all = "lowercase")]
-pub enum Preset {
-    /// Hash grid + small MLPs: minutes on a CPU.
-    #[default]
-    Fast,
-    /// The official NeRSP/NeuS networks (8x256 SDF MLP): hours.
-    Paper,
-    /// The fast preset's networks on a finer, larger hash grid (to 2048 cells per axis), twice
-    /// the rays and four times the iterations: the reference shape of a dataset from 20-60
-    /// views at 1224x1024 (24 views: 65 minutes on one thread, about 40 on two).
-    Dense,
-}
-
-impl Preset {
-    /// Training iterations of a run of this preset unless told otherwise (fast: 3000, about 6
-    /// minutes on 2 cores, lower error than 2000 on every scene of the evaluation set at
-    /// 1224x1024; dense: 4000; paper: the official 100k).
-    pub fn default_iterations(self) -> u32 {
-        match self {
-            Preset::Fast => 3000,
-            Preset::Dense => 4000,
-            Preset::Paper => 100_000,
-        }
-    }
-}
 
 /// Network shapes.
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
@@ -62,38 +34,6 @@ pub struct ModelConfig {
     /// ([`Radiance::specular_polarization`]); off: NeRSP's dielectric Fresnel as it is.
     #[serde(default)]
     pub learned_polarization: bool,
-}
-
-impl ModelConfig {
-    /// The shapes of `preset`.
-    pub fn preset(preset: Preset) -> Self {
-        match preset {
-            Preset::Paper => Self {
-                preset,
-                features: 256,
-                sdf_hidden: 256,
-                sdf_depth: 8,
-                sdf_skip: Some(4),
-                frequencies: 6,
-                grid: None,
-                color_hidden: 256,
-                color_depth: 4,
-                learned_polarization: false,
-            },
-            Preset::Fast | Preset::Dense => Self {
-                preset,
-                features: 15,
-                sdf_hidden: 64,
-                sdf_depth: 2,
-                sdf_skip: None,
-                frequencies: 0,
-                grid: Some(if preset == Preset::Dense { (16, 19, 16, 2048) } else { (8, 16, 16, 256) }),
-                color_hidden: 64,
-                color_depth: 2,
-                learned_polarization: false,
-            },
-        }
-    }
 }
 
 /// The SDF field: point -> (SDF, features).

@@ -9,7 +9,7 @@
 //! field is accepted everywhere under its name.
 
 use crate::extract::Device;
-use crate::model::Preset;
+use crate::presets::{self, Preset};
 use crate::train::TrainConfig;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -173,7 +173,7 @@ impl ReconOptions {
 
     /// The training configuration these options give: the preset's, with what was set.
     pub fn config(&self) -> TrainConfig {
-        let mut config = TrainConfig::preset(self.preset, self.iterations());
+        let mut config = presets::training(self.preset, self.iterations());
         config.photometric = !self.no_photometric;
         config.geometric = !self.no_geometric;
         config.seed = self.seed;

@@ -9,7 +9,7 @@ use crate::data::TrainingSet;
 use crate::engine::{Adam, AdamConfig};
 use crate::geometric::{tangent_loss, tangents};
 use crate::losses::{curvature, eikonal, l1, mask_bce, PerTerm, Term};
-use crate::model::{GridGradient, Model, ModelConfig, Preset, STOKES};
+use crate::model::{GridGradient, Model, ModelConfig, STOKES};
 use crate::options::ReconOptions;
 use crate::volume::{sample_depths, Forward, RayGrad, Sampling};
 use crate::{Error, Result};
@@ -66,75 +66,8 @@ fn full_size() -> u32 {
     1
 }
 
-/// Curvature weight of the fast and dense presets: measured on the evaluation set (issue 13,
-/// `docs/benchmarks.md`): 5e-3 lowered the normal error on all six scenes against 5e-4, 1e-2
-/// raised it again on the gear and the bowl.
-pub const CURVATURE_WEIGHT: f32 = 5e-3;
-
-/// Default share of background rays in a batch.
-pub const BACKGROUND_SHARE: f32 = 0.25;
-
 /// Rays per chunk of a batch; chunks run in parallel and are summed in order.
 const CHUNK_RAYS: usize = 32;
-
-impl TrainConfig {
-    /// The defaults of `preset` for a run of `iterations`.
-    pub fn preset(preset: Preset, iterations: u32) -> Self {
-        let model = ModelConfig::preset(preset);
-        let levels = model.grid.map_or(0, |g| g.0);
-        let start_levels = levels.min(4);
-        let anneal_every =
-            if levels > start_levels { (iterations / 2 / (levels - start_levels) as u32).max(1) } else { 1 };
-        let (batch_rays, sampling, adam) = match preset {
-            Preset::Paper => (
-                512,
-                Sampling { coarse: 64, fine: 64, steps: 4 },
-                AdamConfig {
-                    lr_network: 5e-4,
-                    lr_grid: 0.0,
-                    lr_variance: 5e-4,
-                    warmup: 5000.min(iterations / 20),
-                    final_fraction: 0.05,
-                    grid_level_decay: 1.0,
-                },
-            ),
-            Preset::Fast | Preset::Dense => (
-                if preset == Preset::Dense { 512 } else { 256 },
-                Sampling { coarse: 32, fine: 32, steps: 4 },
-                AdamConfig {
-                    lr_network: 2e-3,
-                    lr_grid: 1e-2,
-                    lr_variance: 2e-3,
-                    warmup: (iterations / 20).min(500),
-                    final_fraction: 0.05,
-                    grid_level_decay: 1.0,
-                },
-            ),
-        };
-        Self {
-            model,
-            iterations,
-            batch_rays,
-            sampling,
-            adam,
-            weights: LossWeights::from_fn(|term| match term {
-                Term::Photometric | Term::Geometric | Term::Mask => 1.0,
-                Term::Eikonal => 0.1,
-                Term::Curvature if preset != Preset::Paper => CURVATURE_WEIGHT,
-                Term::Curvature => 0.0,
-            }),
-            photometric: true,
-            geometric: true,
-            diffuse_only: 1000.min(iterations / 10),
-            margin: 8,
-            background_share: BACKGROUND_SHARE,
-            start_levels,
-            anneal_every,
-            seed: 0,
-            downscale: 1,
-        }
-    }
-}
 
 /// One line of the loss log.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]

@@ -9,8 +9,9 @@ use rmvp_dataset::rng::Rng;
 use rmvp_dataset::Mesh;
 use rmvp_recon::cuda::CudaSdf;
 use rmvp_recon::extract::{CpuSdf, Device, SdfEvaluator};
-use rmvp_recon::model::{Model, ModelConfig, Preset};
+use rmvp_recon::model::Model;
 use rmvp_recon::options::{ReconOptions, RunControl};
+use rmvp_recon::presets::{self, Preset};
 use rmvp_recon::reconstruct::{reconstruct, CHECKPOINT, MESH};
 use rmvp_recon::Error;
 use std::ops::ControlFlow;
@@ -22,7 +23,7 @@ fn no_gpu_here(why: &str) -> bool {
 
 /// The preset's initial sphere made bumpy: every parameter moved, the grid's far from zero.
 fn bumpy(preset: Preset) -> (Model, Vec<f32>) {
-    let model = Model::new(ModelConfig::preset(preset));
+    let model = Model::new(presets::model(preset));
     let mut params = model.init(3);
     let mut rng = Rng::for_pixel(5, 0, 0);
     for (i, p) in params.iter_mut().enumerate() {
@@ -65,7 +66,7 @@ fn cuda_sdf_matches_the_cpu_engine_or_says_why_not() {
 
 #[test]
 fn the_paper_preset_is_refused_by_name() {
-    let model = Model::new(ModelConfig::preset(Preset::Paper));
+    let model = Model::new(presets::model(Preset::Paper));
     let params = model.init(0);
     match CudaSdf::new(&model.field, &params, &[]) {
         Err(Error::Cuda(why)) => assert!(why.contains("paper preset"), "{why}"),

@@ -6,12 +6,12 @@ use rmvp_align::normal_errors;
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::data::TrainingSet;
 use rmvp_recon::extract::{extract_mesh, CpuSdf};
-use rmvp_recon::model::Preset;
-use rmvp_recon::train::{TrainConfig, Trainer};
+use rmvp_recon::presets::{self, Preset};
+use rmvp_recon::train::Trainer;
 
 fn train(photometric: bool, geometric: bool) -> f64 {
     let scene = read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
-    let mut config = TrainConfig::preset(Preset::Fast, 400);
+    let mut config = presets::training(Preset::Fast, 400);
     config.batch_rays = 256;
     config.photometric = photometric;
     config.geometric = geometric;

@@ -6,8 +6,9 @@
 use rmvp_dataset::rng::Rng;
 use rmvp_recon::engine::encoding::{ide, IDE_WIDTH};
 use rmvp_recon::engine::{Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
-use rmvp_recon::model::{Model, ModelConfig, Preset, ShadingCache, ShadingInput, STOKES};
+use rmvp_recon::model::{Model, ShadingCache, ShadingInput, STOKES};
 use rmvp_recon::pbrdf::{degrees, double_azimuth};
+use rmvp_recon::presets::{self, Preset};
 use rmvp_recon::volume::{sample_depths, Forward, Ray, RayGrad, Sampling};
 
 /// Compare `analytic` with central differences of `loss` on `indices` of `params`; the
@@ -180,7 +181,7 @@ fn polarimetric_terms() {
 }
 
 fn small_model() -> (Model, Vec<f32>) {
-    let mut config = ModelConfig::preset(Preset::Fast);
+    let mut config = presets::model(Preset::Fast);
     config.grid = Some((4, 12, 8, 32));
     config.features = 5;
     config.color_hidden = 16;

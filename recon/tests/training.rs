@@ -5,9 +5,9 @@ use nalgebra::Vector3;
 use rmvp_dataset::{Scene, Split};
 use rmvp_recon::data::TrainingSet;
 use rmvp_recon::extract::{extract_mesh, CpuSdf};
-use rmvp_recon::model::Preset;
 use rmvp_recon::options::{ReconOptions, RunControl};
 use rmvp_recon::output::{render_view as render_outputs, SurfaceGuide};
+use rmvp_recon::presets::{self, Preset};
 use rmvp_recon::reconstruct::reconstruct;
 use rmvp_recon::train::{StepEvent, TrainConfig, Trainer};
 use rmvp_recon::volume::{sample_depths, Forward};
@@ -43,7 +43,7 @@ fn sphere_scene() -> Scene {
 }
 
 fn small_config(iterations: u32) -> TrainConfig {
-    let mut config = TrainConfig::preset(Preset::Fast, iterations);
+    let mut config = presets::training(Preset::Fast, iterations);
     config.batch_rays = 256;
     config
 }

@@ -12,7 +12,7 @@ use rmvp_pipeline::export::{export_scene, import_rmvp3d, ExportFormat};
 use rmvp_pipeline::ground_truth::write_ground_truth_maps;
 use rmvp_pipeline::publish::{publish, Archive, PublishOptions};
 use rmvp_pipeline::verify::verify;
-use rmvp_recon::model::Preset;
+use rmvp_recon::presets::Preset;
 use std::path::PathBuf;
 
 /// The subcommands of `rmvp dataset`.

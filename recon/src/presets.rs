@@ -1,0 +1,135 @@
+//! The presets, as data: every number a preset sets (network shapes, iterations, rays, samples,
+//! learning rates, loss weights, schedules) is here and nowhere else. [`ReconOptions`]
+//! (`crate::options`) starts from [`training`] and changes what the caller set.
+//!
+//! [`ReconOptions`]: crate::options::ReconOptions
+
+use crate::engine::AdamConfig;
+use crate::losses::Term;
+use crate::model::ModelConfig;
+use crate::train::{LossWeights, TrainConfig};
+use crate::volume::Sampling;
+use serde::{Deserialize, Serialize};
+
+/// The presets: the model, its size and its training schedule together.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// Hash grid + small MLPs: minutes on a CPU.
+    #[default]
+    Fast,
+    /// The official NeRSP/NeuS networks (8x256 SDF MLP): hours.
+    Paper,
+    /// The fast preset's networks on a finer, larger hash grid (to 2048 cells per axis), twice
+    /// the rays and four times the iterations: the reference shape of a dataset from 20-60
+    /// views at 1224x1024 (24 views: 65 minutes on one thread, about 40 on two).
+    Dense,
+}
+
+impl Preset {
+    /// Training iterations of a run of this preset unless told otherwise (fast: 3000, about 6
+    /// minutes on 2 cores, lower error than 2000 on every scene of the evaluation set at
+    /// 1224x1024; dense: 4000; paper: the official 100k).
+    pub fn default_iterations(self) -> u32 {
+        match self {
+            Preset::Fast => 3000,
+            Preset::Dense => 4000,
+            Preset::Paper => 100_000,
+        }
+    }
+}
+
+/// Curvature weight of the fast and dense presets: measured on the evaluation set
+/// (`docs/benchmarks.md`): 5e-3 lowered the normal error on all six scenes against 5e-4, 1e-2
+/// raised it again on the gear and the bowl.
+pub const CURVATURE_WEIGHT: f32 = 5e-3;
+
+/// Share of background rays in a batch.
+pub const BACKGROUND_SHARE: f32 = 0.25;
+
+/// The network shapes of `preset`.
+pub fn model(preset: Preset) -> ModelConfig {
+    match preset {
+        Preset::Paper => ModelConfig {
+            preset,
+            features: 256,
+            sdf_hidden: 256,
+            sdf_depth: 8,
+            sdf_skip: Some(4),
+            frequencies: 6,
+            grid: None,
+            color_hidden: 256,
+            color_depth: 4,
+            learned_polarization: false,
+        },
+        Preset::Fast | Preset::Dense => ModelConfig {
+            preset,
+            features: 15,
+            sdf_hidden: 64,
+            sdf_depth: 2,
+            sdf_skip: None,
+            frequencies: 0,
+            grid: Some(if preset == Preset::Dense { (16, 19, 16, 2048) } else { (8, 16, 16, 256) }),
+            color_hidden: 64,
+            color_depth: 2,
+            learned_polarization: false,
+        },
+    }
+}
+
+/// The training configuration of `preset` for a run of `iterations`.
+pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
+    let model = model(preset);
+    let levels = model.grid.map_or(0, |g| g.0);
+    let start_levels = levels.min(4);
+    let anneal_every = if levels > start_levels { (iterations / 2 / (levels - start_levels) as u32).max(1) } else { 1 };
+    let (batch_rays, sampling, adam) = match preset {
+        Preset::Paper => (
+            512,
+            Sampling { coarse: 64, fine: 64, steps: 4 },
+            AdamConfig {
+                lr_network: 5e-4,
+                lr_grid: 0.0,
+                lr_variance: 5e-4,
+                warmup: 5000.min(iterations / 20),
+                final_fraction: 0.05,
+                grid_level_decay: 1.0,
+            },
+        ),
+        Preset::Fast | Preset::Dense => (
+            if preset == Preset::Dense { 512 } else { 256 },
+            Sampling { coarse: 32, fine: 32, steps: 4 },
+            AdamConfig {
+                lr_network: 2e-3,
+                lr_grid: 1e-2,
+                lr_variance: 2e-3,
+                warmup: (iterations / 20).min(500),
+                final_fraction: 0.05,
+                grid_level_decay: 1.0,
+            },
+        ),
+    };
+    TrainConfig {
+        model,
+        iterations,
+        batch_rays,
+        sampling,
+        adam,
+        weights: LossWeights::from_fn(|term| match term {
+            Term::Photometric | Term::Geometric | Term::Mask => 1.0,
+            Term::Eikonal => 0.1,
+            Term::Curvature if preset != Preset::Paper => CURVATURE_WEIGHT,
+            Term::Curvature => 0.0,
+        }),
+        photometric: true,
+        geometric: true,
+        diffuse_only: 1000.min(iterations / 10),
+        margin: 8,
+        background_share: BACKGROUND_SHARE,
+        start_levels,
+        anneal_every,
+        seed: 0,
+        downscale: 1,
+    }
+}
