@@ -13,11 +13,11 @@
 use nalgebra::Vector3;
 use rmvp_align::icp::ALIGNED_MESH;
 use rmvp_align::{surface_metrics, SurfaceOptions};
-use rmvp_calib::board::BoardSpec;
-use rmvp_calib::lab::LabSetup;
+use rmvp_calib::board::BoardOptions;
+use rmvp_calib::lab::LabOptions;
 use rmvp_calib::poses::accuracy::pose_errors;
 use rmvp_calib::poses::PoseSet;
-use rmvp_capture::simulator::{SimulatedScene, SimulatedSetup, SimulatorConfig};
+use rmvp_capture::simulator::{SimulatedScene, SimulatedSetup, SimulatorOptions};
 use rmvp_dataset::session::SessionManifest;
 use rmvp_dataset::{Camera, Mesh};
 use rmvp_pipeline::build::{REFERENCE_FOLDER, SCAN_FOLDER};
@@ -138,16 +138,16 @@ fn main() {
         println!("    colmap {step:<32} {seconds:7.1} s");
     }
 
-    let truth = SimulatedScene::new(&SimulatorConfig {
+    let truth = SimulatedScene::new(&SimulatorOptions {
         views: VIEWS,
-        setup: SimulatedSetup::Lab(LabSetup {
-            board: BoardSpec { squares: [10, 8], ..BoardSpec::default() },
-            ..LabSetup::default()
+        setup: SimulatedSetup::Lab(LabOptions {
+            board: BoardOptions { squares: [10, 8], ..BoardOptions::default() },
+            ..LabOptions::default()
         }),
-        ..SimulatorConfig::default()
+        ..SimulatorOptions::default()
     })
     .expect("the simulated lab");
-    let distance = LabSetup::default().distance_mm;
+    let distance = LabOptions::default().distance_mm;
     println!("pose accuracy against the rendered truth (worst view; centres in % of the camera distance):");
     println!("  views  method    posed  rotation (deg)  centre (%)   time (s)");
     // Both rings (views alternate between them), evenly around.

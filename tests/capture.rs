@@ -2,7 +2,7 @@
 //! Vision camera on loopback, in its own process so that it can be killed).
 
 use rmvp_capture::correction::subtract_dark;
-use rmvp_capture::simulator::{SimulatedScene, SimulatorConfig};
+use rmvp_capture::simulator::{SimulatedScene, SimulatorOptions};
 use rmvp_capture::FrameProcessor;
 use rmvp_dataset::layout::rmvp::read_stokes;
 use rmvp_dataset::session::{PositioningMode, SessionManifest, StokesUnit};
@@ -147,7 +147,7 @@ fn a_six_view_session_matches_the_renderer_within_the_noise() {
     assert_eq!(manifest.camera.features["ExposureTime"], "20000");
     manifest.verify(&dir).unwrap();
 
-    let scene = SimulatedScene::new(&SimulatorConfig { views: 6, ..SimulatorConfig::default() }).unwrap();
+    let scene = SimulatedScene::new(&SimulatorOptions { views: 6, ..SimulatorOptions::default() }).unwrap();
     for view in &manifest.views {
         let truth = scene.render(view.index);
         let (z, z90, aop) = residuals(&dir.join("views").join(&view.name), &truth);
@@ -223,7 +223,7 @@ fn hdr_brackets_recover_highlights_the_long_exposure_clips() {
     let unit = &manifest.settings.stokes_unit;
     assert!(matches!(unit, StokesUnit::HdrFullScale { shortest_exposure_us: 4000.0, .. }), "{unit}");
 
-    let truth = SimulatedScene::new(&SimulatorConfig { views: 2, ..SimulatorConfig::default() }).unwrap().render(0);
+    let truth = SimulatedScene::new(&SimulatorOptions { views: 2, ..SimulatorOptions::default() }).unwrap().render(0);
     let measured = read_stokes(&dir.join("views/000/view_stokes.exr")).unwrap();
     // HDR Stokes are in units of the shortest exposure's full scale: compare with the noise-free
     // capture at 4 ms, which clips nowhere.

@@ -10,15 +10,15 @@
 use nalgebra::Vector3;
 use rmvp_align::normal_errors;
 use rmvp_align::{surface_metrics, Similarity, SurfaceOptions};
-use rmvp_calib::board::BoardSpec;
+use rmvp_calib::board::BoardOptions;
 use rmvp_calib::intrinsics::CameraCalibration;
 use rmvp_calib::lab::lab_environment;
-use rmvp_calib::lab::LabSetup;
+use rmvp_calib::lab::LabOptions;
 use rmvp_calib::normalization::visual_hull_sphere;
 use rmvp_calib::poses::accuracy::pose_errors;
 use rmvp_calib::poses::PoseSet;
 use rmvp_calib::scene::posed_scene;
-use rmvp_capture::simulator::{SimulatedScene, SimulatedSetup, SimulatorConfig};
+use rmvp_capture::simulator::{SimulatedScene, SimulatedSetup, SimulatorOptions};
 use rmvp_dataset::io::png;
 use rmvp_dataset::layout::{read_scene, write_scene, Layout};
 use rmvp_dataset::{Camera, Mesh};
@@ -35,8 +35,8 @@ use common::{fails, ok, s};
 /// enough corners show around the object).
 const BOARD: [&str; 2] = ["--squares", "10x8"];
 
-fn lab_setup() -> LabSetup {
-    LabSetup { board: BoardSpec { squares: [10, 8], ..BoardSpec::default() }, ..LabSetup::default() }
+fn lab_setup() -> LabOptions {
+    LabOptions { board: BoardOptions { squares: [10, 8], ..BoardOptions::default() }, ..LabOptions::default() }
 }
 
 /// One simulated camera on the loopback address at a time: tests take turns.
@@ -59,10 +59,10 @@ fn a_lab_session_becomes_posed_masked_views() {
     capture(&cal, 24, &["--setup", "calibration", BOARD[0], BOARD[1]]);
     capture(&lab, 24, &["--setup", "lab", BOARD[0], BOARD[1]]);
     capture(&empty, 24, &["--setup", "lab", "--no-object", BOARD[0], BOARD[1]]);
-    let truth = SimulatedScene::new(&SimulatorConfig {
+    let truth = SimulatedScene::new(&SimulatorOptions {
         views: 24,
         setup: SimulatedSetup::Lab(lab_setup()),
-        ..SimulatorConfig::default()
+        ..SimulatorOptions::default()
     })
     .unwrap();
     let cameras = &truth.cameras;

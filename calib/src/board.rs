@@ -56,7 +56,7 @@ pub const DICTIONARIES: [(&str, aruco::PREDEFINED_DICTIONARY_NAME); 17] = {
 
 /// A calibration board as printed.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct BoardSpec {
+pub struct BoardOptions {
     /// ChArUco or chessboard.
     pub kind: BoardKind,
     /// Squares along x and y.
@@ -69,7 +69,7 @@ pub struct BoardSpec {
     pub dictionary: String,
 }
 
-impl Default for BoardSpec {
+impl Default for BoardOptions {
     /// The lab's board: ChArUco 8x6 squares of 30 mm, 22 mm markers from `5X5_1000`.
     fn default() -> Self {
         Self {
@@ -82,7 +82,7 @@ impl Default for BoardSpec {
     }
 }
 
-impl BoardSpec {
+impl BoardOptions {
     /// The board's extent in millimetres (x, y).
     pub fn size_mm(&self) -> [f64; 2] {
         [self.squares[0] as f64 * self.square_mm, self.squares[1] as f64 * self.square_mm]
@@ -149,12 +149,12 @@ impl Detection {
 
 /// A board ready to draw and detect.
 pub struct Board {
-    spec: BoardSpec,
+    spec: BoardOptions,
     charuco: Option<(Ptr<aruco::CharucoBoard>, Ptr<aruco::Dictionary>)>,
 }
 
 /// OpenCV's ChArUco board of `spec` and its dictionary.
-fn charuco_board(spec: &BoardSpec) -> Result<(Ptr<aruco::CharucoBoard>, Ptr<aruco::Dictionary>)> {
+fn charuco_board(spec: &BoardOptions) -> Result<(Ptr<aruco::CharucoBoard>, Ptr<aruco::Dictionary>)> {
     let dict = aruco::get_predefined_dictionary(dictionary(&spec.dictionary)?)?;
     let board = aruco::CharucoBoard::create(
         spec.squares[0] as i32,
@@ -172,7 +172,7 @@ fn subpixel_criteria() -> Result<core::TermCriteria> {
 }
 
 /// OpenCV's board coordinates to ours: x kept, y flipped about the board's height, z flipped.
-fn from_opencv(spec: &BoardSpec, p: core::Point3f) -> Point3<f64> {
+fn from_opencv(spec: &BoardOptions, p: core::Point3f) -> Point3<f64> {
     Point3::new(p.x as f64, spec.size_mm()[1] - p.y as f64, -(p.z as f64))
 }
 
@@ -194,7 +194,7 @@ fn grey_mat(image: &Image<u8>) -> Result<Mat> {
 
 impl Board {
     /// The board of `spec`.
-    pub fn new(spec: &BoardSpec) -> Result<Self> {
+    pub fn new(spec: &BoardOptions) -> Result<Self> {
         spec.validate()?;
         let charuco = match spec.kind {
             BoardKind::Charuco => Some(charuco_board(spec)?),
@@ -204,7 +204,7 @@ impl Board {
     }
 
     /// The board's description.
-    pub fn spec(&self) -> &BoardSpec {
+    pub fn spec(&self) -> &BoardOptions {
         &self.spec
     }
 

@@ -6,7 +6,7 @@
 //! enough are left out and named; mixed sizes, too few images and views that cannot fix the
 //! focal length (the board at one orientation throughout) are refused.
 
-use crate::board::{Board, BoardSpec, Detection};
+use crate::board::{Board, BoardOptions, Detection};
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
 use opencv::calib3d;
@@ -81,7 +81,7 @@ pub struct CameraCalibration {
     /// The images left out.
     pub rejected: Vec<Rejected>,
     /// The board.
-    pub board: BoardSpec,
+    pub board: BoardOptions,
     /// What deserves a look before the calibration is trusted ([`error_clusters`]).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
@@ -308,7 +308,7 @@ pub fn coverage_path(calibration: &Path) -> std::path::PathBuf {
 /// to `output` (JSON) with its coverage picture beside it ([`coverage_path`]).
 pub fn calibrate_files(
     inputs: &[std::path::PathBuf],
-    board: &BoardSpec,
+    board: &BoardOptions,
     options: &CalibrationOptions,
     output: &Path,
 ) -> Result<CalibrationRun> {

@@ -5,7 +5,7 @@
 //! z up. A calibration session shows the board alone, held at many tilts and places in the
 //! frame.
 
-use crate::board::{board_to_y_up, Board, BoardSpec};
+use crate::board::{board_to_y_up, Board, BoardOptions};
 use crate::Result;
 use nalgebra::{Matrix3, Vector3};
 use rmvp_dataset::rng::Rng;
@@ -27,9 +27,9 @@ pub const RING_ELEVATIONS_DEG: [f64; 2] = [40.0, 60.0];
 
 /// What stands in the simulated lab.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct LabSetup {
+pub struct LabOptions {
     /// The board under the subject.
-    pub board: BoardSpec,
+    pub board: BoardOptions,
     /// The subject's bounding-sphere radius, millimetres.
     pub object_radius_mm: f64,
     /// A textured table under the board.
@@ -41,9 +41,9 @@ pub struct LabSetup {
     pub object: bool,
 }
 
-impl Default for LabSetup {
+impl Default for LabOptions {
     fn default() -> Self {
-        Self { board: BoardSpec::default(), object_radius_mm: 70.0, table: true, distance_mm: 430.0, object: true }
+        Self { board: BoardOptions::default(), object_radius_mm: 70.0, table: true, distance_mm: 430.0, object: true }
     }
 }
 
@@ -97,7 +97,7 @@ pub struct Lab {
     pub radius: f64,
 }
 
-impl LabSetup {
+impl LabOptions {
     /// Place `object` (any units, +Y up) on the board and build the parts.
     pub fn build(&self, object: &Mesh, interface: Interface) -> Result<Lab> {
         let board = Board::new(&self.board)?;
@@ -152,7 +152,7 @@ pub fn lab_environment(env: EnvMap) -> EnvMap {
 }
 
 /// The board alone for a calibration session (no subject, no table): its parts.
-pub fn calibration_parts(spec: &BoardSpec) -> Result<Vec<Part>> {
+pub fn calibration_parts(spec: &BoardOptions) -> Result<Vec<Part>> {
     let board = Board::new(spec)?;
     Ok(vec![Part {
         mesh: board.plane_mesh(),
@@ -167,7 +167,7 @@ pub fn calibration_parts(spec: &BoardSpec) -> Result<Vec<Part>> {
 /// direction, at several distances and rolls, landing in every part of the frame (a set that
 /// determines the intrinsics; deterministic in `seed`).
 pub fn calibration_cameras(
-    spec: &BoardSpec,
+    spec: &BoardOptions,
     views: usize,
     k: Matrix3<f64>,
     width: u32,

@@ -3,7 +3,7 @@
 //! renders recovers the cameras' intrinsics; bad sets are refused by kind.
 
 use nalgebra::{Matrix3, Vector3};
-use rmvp_calib::board::{Board, BoardKind, BoardSpec};
+use rmvp_calib::board::{Board, BoardKind, BoardOptions};
 use rmvp_calib::intrinsics::{calibrate, CalibrationOptions};
 use rmvp_calib::lab::calibration_cameras;
 use rmvp_calib::Error;
@@ -33,7 +33,7 @@ fn board_object(board: &Board) -> Object {
 /// A camera `distance` mm from the board centre, seen from azimuth/elevation (degrees), turned
 /// about its axis by `roll` degrees, looking `aside` mm beside the centre (so that the board
 /// lands elsewhere in the frame).
-fn camera(spec: &BoardSpec, azimuth: f64, elevation: f64, distance: f64, roll: f64, aside: [f64; 2]) -> Camera {
+fn camera(spec: &BoardOptions, azimuth: f64, elevation: f64, distance: f64, roll: f64, aside: [f64; 2]) -> Camera {
     let [w, h] = spec.size_mm();
     let centre = Vector3::new(w / 2.0, h / 2.0, 0.0);
     let (a, e) = (azimuth.to_radians(), elevation.to_radians());
@@ -48,13 +48,13 @@ fn render(object: &Object, camera: &Camera, view: u32) -> Image<u8> {
     preview(&r.stokes.s0)
 }
 
-fn cameras(spec: &BoardSpec) -> Vec<Camera> {
+fn cameras(spec: &BoardOptions) -> Vec<Camera> {
     calibration_cameras(spec, 24, intrinsics(), SIZE.0, SIZE.1, 0)
 }
 
 #[test]
 fn rendered_boards_are_found_where_cameras_project_them_and_calibrate() {
-    let spec = BoardSpec::default();
+    let spec = BoardOptions::default();
     let board = Board::new(&spec).unwrap();
     let object = board_object(&board);
     let cams = cameras(&spec);
@@ -124,7 +124,7 @@ fn rendered_boards_are_found_where_cameras_project_them_and_calibrate() {
 
 #[test]
 fn a_chessboard_calibrates_too() {
-    let spec = BoardSpec { kind: BoardKind::Chessboard, squares: [9, 7], ..BoardSpec::default() };
+    let spec = BoardOptions { kind: BoardKind::Chessboard, squares: [9, 7], ..BoardOptions::default() };
     let board = Board::new(&spec).unwrap();
     let object = board_object(&board);
     // Every other view of the set (the whole pattern must be in view; some are not).
@@ -140,12 +140,12 @@ fn a_chessboard_calibrates_too() {
     // Fewer images than the ChArUco test: the principal point within 2 px.
     assert!((k[(0, 0)] / 900.0 - 1.0).abs() < 0.005 && (k[(0, 2)] - 322.5).abs() < 2.0, "{k}");
     assert_eq!(run.calibration.images.len() + run.calibration.rejected.len(), 12);
-    assert!(Board::new(&BoardSpec { dictionary: "9X9".into(), ..BoardSpec::default() }).is_err());
+    assert!(Board::new(&BoardOptions { dictionary: "9X9".into(), ..BoardOptions::default() }).is_err());
 }
 
 #[test]
 fn the_printable_page_prints_at_true_size_and_its_corners_are_where_the_board_frame_says() {
-    let spec = BoardSpec::default();
+    let spec = BoardOptions::default();
     let board = Board::new(&spec).unwrap();
     let (dpi, margin_mm) = (200.0, 10.0);
     let page = board.printable(dpi, margin_mm).unwrap();

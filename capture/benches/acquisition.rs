@@ -4,8 +4,8 @@
 //! with every frame decoded and processed to Stokes, AoP and DoP on a second thread (bounded
 //! queue of two frames). Run with `cargo bench -p rmvp-capture --bench acquisition`.
 
-use rmvp_capture::camera::{Camera, CameraSettings, Grab};
-use rmvp_capture::simulator::{SimulatedCamera, SimulatorConfig, SENSOR_HEIGHT, SENSOR_WIDTH};
+use rmvp_capture::camera::{CameraDevice, CameraOptions, Grab};
+use rmvp_capture::simulator::{SimulatedCamera, SimulatorOptions, SENSOR_HEIGHT, SENSOR_WIDTH};
 use rmvp_capture::{FrameProcessor, ProcessedFrame, RawFrame};
 use std::sync::mpsc::sync_channel;
 use std::time::{Duration, Instant};
@@ -16,10 +16,11 @@ fn main() {
     if !std::env::args().any(|a| a == "--bench") {
         return; // run by `cargo test --all-targets` (no `--bench`): measure only under `cargo bench`
     }
-    let config = SimulatorConfig { serial: "RMVPBENCH1".into(), views: 1, noise: false, ..SimulatorConfig::default() };
+    let config =
+        SimulatorOptions { serial: "RMVPBENCH1".into(), views: 1, noise: false, ..SimulatorOptions::default() };
     let _sim = SimulatedCamera::start(&config).expect("simulated camera");
-    let mut camera = Camera::open(Some("RMVPBENCH1")).expect("open");
-    let settings = CameraSettings { frame_rate: Some(75.0), exposure_us: 5_000.0, ..CameraSettings::default() };
+    let mut camera = CameraDevice::open(Some("RMVPBENCH1")).expect("open");
+    let settings = CameraOptions { frame_rate: Some(75.0), exposure_us: 5_000.0, ..CameraOptions::default() };
     let format = camera.configure(&settings).expect("configure");
     println!("{} at {SENSOR_WIDTH}x{SENSOR_HEIGHT}, asked for 75 frames/s, {SECONDS} s per run", format.name());
 

@@ -6,7 +6,7 @@ use crate::raw::PixelFormat;
 use crate::{Error, Result};
 use aravis::glib::prelude::Cast;
 use aravis::prelude::*;
-pub use rmvp_dataset::session::{CameraIdentity, CameraSettings, TriggerSource};
+pub use rmvp_dataset::session::{CameraIdentity, CameraOptions, TriggerSource};
 use serde::{Deserialize, Serialize};
 use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
@@ -100,7 +100,7 @@ pub enum Grab {
 }
 
 /// An open camera.
-pub struct Camera {
+pub struct CameraDevice {
     camera: aravis::Camera,
     device: aravis::Device,
     name: String,
@@ -113,7 +113,7 @@ pub struct Camera {
 /// Frame buffers queued to the stream.
 const STREAM_BUFFERS: usize = 8;
 
-impl Camera {
+impl CameraDevice {
     /// Open the first camera (`None`), or the one whose serial number, address or aravis id is
     /// `selector`.
     pub fn open(selector: Option<&str>) -> Result<Self> {
@@ -181,7 +181,7 @@ impl Camera {
             .map_err(|e| Error::camera(&self.name, format!("cannot read {name}: {e}")))
     }
 
-    /// Set a feature from text, as [`Camera::feature`] writes it.
+    /// Set a feature from text, as [`CameraDevice::feature`] writes it.
     pub fn set_feature(&self, name: &str, value: &str) -> Result<()> {
         self.node(name)?
             .set_value_from_string(value)
@@ -240,7 +240,7 @@ impl Camera {
 
     /// Apply `settings`: pixel format (negotiated), auto exposure and gain off, exposure time,
     /// gain, frame rate and trigger. Returns the pixel format chosen.
-    pub fn configure(&mut self, settings: &CameraSettings) -> Result<PixelFormat> {
+    pub fn configure(&mut self, settings: &CameraOptions) -> Result<PixelFormat> {
         let format = choose_pixel_format(&self.offered_pixel_formats()?, settings.pixel_format.as_deref())?;
         // The buffer pool is sized for the payload: a new format needs a new pool.
         self.stream = None;
@@ -352,7 +352,7 @@ impl Camera {
     }
 }
 
-impl Drop for Camera {
+impl Drop for CameraDevice {
     fn drop(&mut self) {
         if self.stream.is_some() {
             let _ = self.execute("AcquisitionStop");

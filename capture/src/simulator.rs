@@ -12,8 +12,8 @@ use crate::raw::PixelFormat;
 use crate::sensor::SensorModel;
 use crate::{Error, Result};
 use aravis_sys as ffi;
-use rmvp_calib::board::BoardSpec;
-use rmvp_calib::lab::{calibration_cameras, calibration_parts, lab_environment, LabSetup};
+use rmvp_calib::board::BoardOptions;
+use rmvp_calib::lab::{calibration_cameras, calibration_parts, lab_environment, LabOptions};
 use rmvp_dataset::{Camera, Mesh, Stokes};
 use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::rig::{framing_distance, rig_intrinsics, RigKind};
@@ -79,7 +79,7 @@ pub const PIXEL_FORMATS: [(&str, u32); 8] = [
 
 /// What the simulated camera shows and how it behaves.
 #[derive(Clone, Debug)]
-pub struct SimulatorConfig {
+pub struct SimulatorOptions {
     /// Serial number it reports (and is opened by).
     pub serial: String,
     /// Network interface (name or IPv4 address) it answers on.
@@ -112,13 +112,13 @@ pub enum SimulatedSetup {
     Turntable,
     /// The simulated lab: the object on a calibration board on a textured table, the camera on
     /// two rings around it; world frame = the board's (mm, z up). Poses are turntable positions.
-    Lab(LabSetup),
+    Lab(LabOptions),
     /// A calibration session: the board alone, moved in front of the camera at many tilts
     /// (one pose per turntable position); world frame = the board's.
-    Calibration(BoardSpec),
+    Calibration(BoardOptions),
 }
 
-impl Default for SimulatorConfig {
+impl Default for SimulatorOptions {
     fn default() -> Self {
         Self {
             serial: "RMVPSIM0001".into(),
@@ -150,7 +150,7 @@ pub struct SimulatedScene {
 
 impl SimulatedScene {
     /// Build the scene of `config`.
-    pub fn new(config: &SimulatorConfig) -> Result<Self> {
+    pub fn new(config: &SimulatorOptions) -> Result<Self> {
         let mesh = match &config.mesh {
             Some(path) => Mesh::read(path)?,
             None => default_mesh(),
@@ -406,7 +406,7 @@ pub struct SimulatedCamera {
 
 impl SimulatedCamera {
     /// Render the first pose and start answering on `config.interface`.
-    pub fn start(config: &SimulatorConfig) -> Result<Self> {
+    pub fn start(config: &SimulatorOptions) -> Result<Self> {
         let unknown: Vec<_> = config.pixel_formats.iter().filter(|n| format_code(n).is_none()).collect();
         if !unknown.is_empty() || config.pixel_formats.is_empty() {
             return Err(Error::Unsupported(format!(

@@ -2,8 +2,8 @@
 //! loopback with our XML): feature round trips, pixel-format negotiation, and frames in every
 //! streamed format decoding to exactly what the sensor model makes of the rendered pose.
 
-use rmvp_capture::camera::{Camera, CameraSettings, Grab};
-use rmvp_capture::simulator::{SimulatedCamera, SimulatedScene, SimulatorConfig, SENSOR_HEIGHT, SENSOR_WIDTH};
+use rmvp_capture::camera::{CameraDevice, CameraOptions, Grab};
+use rmvp_capture::simulator::{SimulatedCamera, SimulatedScene, SimulatorOptions, SENSOR_HEIGHT, SENSOR_WIDTH};
 use rmvp_capture::RawFrame;
 use std::sync::Mutex;
 use std::time::Duration;
@@ -11,15 +11,15 @@ use std::time::Duration;
 /// One simulated camera per address: tests take turns.
 static LOOPBACK: Mutex<()> = Mutex::new(());
 
-fn config(serial: &str, formats: &[&str]) -> SimulatorConfig {
-    let mut config = SimulatorConfig { serial: serial.into(), views: 2, noise: false, ..SimulatorConfig::default() };
+fn config(serial: &str, formats: &[&str]) -> SimulatorOptions {
+    let mut config = SimulatorOptions { serial: serial.into(), views: 2, noise: false, ..SimulatorOptions::default() };
     if !formats.is_empty() {
         config.pixel_formats = formats.iter().map(|s| s.to_string()).collect();
     }
     config
 }
 
-fn next_frame(camera: &mut Camera) -> Vec<u8> {
+fn next_frame(camera: &mut CameraDevice) -> Vec<u8> {
     for _ in 0..50 {
         match camera.grab(Duration::from_secs(5)).unwrap() {
             Grab::Frame(bytes) => return bytes,
@@ -33,7 +33,7 @@ fn next_frame(camera: &mut Camera) -> Vec<u8> {
 fn features_round_trip() {
     let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
     let sim = SimulatedCamera::start(&config("RMVPFEAT01", &[])).unwrap();
-    let camera = Camera::open(Some(&sim.serial)).unwrap();
+    let camera = CameraDevice::open(Some(&sim.serial)).unwrap();
     let id = camera.identity();
     assert_eq!(id.serial, "RMVPFEAT01");
     assert_eq!(id.model, "Simulated BFS-U3-51S5PC-C");
@@ -73,10 +73,10 @@ fn every_streamed_format_decodes_to_the_sensor_model() {
     let config = config("RMVPFMT01", &formats);
     let sim = SimulatedCamera::start(&config).unwrap();
     let truth = SimulatedScene::new(&config).unwrap().render(0);
-    let mut camera = Camera::open(Some(&sim.serial)).unwrap();
-    let settings = CameraSettings { exposure_us: 15_000.0, gain_db: 3.0, ..CameraSettings::default() };
+    let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+    let settings = CameraOptions { exposure_us: 15_000.0, gain_db: 3.0, ..CameraOptions::default() };
     for name in formats {
-        let format = camera.configure(&CameraSettings { pixel_format: Some(name.into()), ..settings.clone() }).unwrap();
+        let format = camera.configure(&CameraOptions { pixel_format: Some(name.into()), ..settings.clone() }).unwrap();
         assert_eq!(format.name(), name);
         camera.start().unwrap();
         let bytes = next_frame(&mut camera);
@@ -92,15 +92,15 @@ fn every_streamed_format_decodes_to_the_sensor_model() {
 fn negotiation_falls_back_to_bayer_names() {
     let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
     let sim = SimulatedCamera::start(&config("RMVPNEG01", &["BayerRG8", "BayerRG16"])).unwrap();
-    let mut camera = Camera::open(Some(&sim.serial)).unwrap();
-    let format = camera.configure(&CameraSettings::default()).unwrap();
+    let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+    let format = camera.configure(&CameraOptions::default()).unwrap();
     assert_eq!(format.name(), "BayerRG16");
     assert_eq!(camera.feature("ExposureAuto").unwrap(), "Off");
     camera.start().unwrap();
     let bytes = next_frame(&mut camera);
     assert_eq!(bytes.len(), SENSOR_WIDTH * SENSOR_HEIGHT * 2);
     let err = camera
-        .configure(&CameraSettings { pixel_format: Some("BayerRGPolarized12p".into()), ..CameraSettings::default() })
+        .configure(&CameraOptions { pixel_format: Some("BayerRGPolarized12p".into()), ..CameraOptions::default() })
         .unwrap_err()
         .to_string();
     assert!(err.contains("does not offer pixel format BayerRGPolarized12p"), "{err}");

@@ -94,7 +94,7 @@ pub enum TriggerSource {
 
 /// Acquisition settings, by the FLIR Blackfly S feature names.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct CameraSettings {
+pub struct CameraOptions {
     /// Pixel format name; `None`: negotiated by the camera code.
     pub pixel_format: Option<String>,
     /// `ExposureTime` in microseconds (`ExposureAuto=Off`).
@@ -107,7 +107,7 @@ pub struct CameraSettings {
     pub trigger: TriggerSource,
 }
 
-impl Default for CameraSettings {
+impl Default for CameraOptions {
     fn default() -> Self {
         Self {
             pixel_format: None,
@@ -178,7 +178,7 @@ impl std::fmt::Display for StokesUnit {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SessionSettings {
     /// Camera settings (the exposure is the first of `exposures_us`).
-    pub camera: CameraSettings,
+    pub camera: CameraOptions,
     /// Exposure times of each view (several: HDR bracketing), microseconds.
     pub exposures_us: Vec<f64>,
     /// Frames averaged per exposure.

@@ -21,10 +21,10 @@ use crate::{Error, Result};
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_calib::masks::{make_masks, MaskMethod, MaskOptions, MASKS_FOLDER};
 use rmvp_calib::poses::{pose_session, PoseRequest, POSES_FILE};
-use rmvp_capture::camera::Camera;
+use rmvp_capture::camera::CameraDevice;
 use rmvp_capture::session::positioning::Positioning;
 use rmvp_capture::session::{capture, SessionOptions, SessionReport};
-use rmvp_capture::simulator::{SimulatedCamera, SimulatedScene, SimulatorConfig};
+use rmvp_capture::simulator::{SimulatedCamera, SimulatedScene, SimulatorOptions};
 use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::io::png;
 use rmvp_dataset::layout::{nersp, read_scene, write_scene, Layout};
@@ -216,7 +216,7 @@ pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result
         "1/6 capturing {DEMO_OBJECT} on the simulated turntable: {DEMO_VIEWS} views through the simulated GenICam camera ({} spp)",
         options.spp
     ));
-    let config = SimulatorConfig { views: DEMO_VIEWS, spp: options.spp, ..SimulatorConfig::default() };
+    let config = SimulatorOptions { views: DEMO_VIEWS, spp: options.spp, ..SimulatorOptions::default() };
     let simulator = SimulatedCamera::start(&config)?;
     let captured = capture_session(&simulator, &session, options.progress)?;
     let manifest = SessionManifest::read(&session)?;
@@ -300,7 +300,7 @@ fn remove_previous_demo(out: &Path) -> Result<()> {
 /// Capture the simulated camera's turntable views into `dir`, as `rmvp capture --simulated
 /// --dark 4` would.
 fn capture_session(simulator: &SimulatedCamera, dir: &Path, progress: bool) -> Result<SessionReport> {
-    let mut camera = Camera::open(Some(&simulator.serial))?;
+    let mut camera = CameraDevice::open(Some(&simulator.serial))?;
     let options = SessionOptions {
         object: DEMO_OBJECT.into(),
         views: DEMO_VIEWS,

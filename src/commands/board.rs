@@ -2,33 +2,33 @@
 //! arguments, shared by every command that uses a board.
 
 use anyhow::Result;
-use rmvp_calib::board::{write_printable, Board, BoardKind, BoardSpec};
+use rmvp_calib::board::{write_printable, Board, BoardKind, BoardOptions};
 use std::path::PathBuf;
 
-/// The printed board (defaults: the lab's board, [`BoardSpec::default`]).
+/// The printed board (defaults: the lab's board, [`BoardOptions::default`]).
 #[derive(clap::Args, Clone, Debug)]
 pub struct BoardArgs {
     /// Board kind.
-    #[arg(long = "board", value_enum, default_value_t = BoardSpec::default().kind)]
+    #[arg(long = "board", value_enum, default_value_t = BoardOptions::default().kind)]
     pub kind: BoardKind,
     /// Squares along x and y, `XxY`.
-    #[arg(long, default_value_t = super::Pair(BoardSpec::default().squares[0], BoardSpec::default().squares[1]))]
+    #[arg(long, default_value_t = super::Pair(BoardOptions::default().squares[0], BoardOptions::default().squares[1]))]
     pub squares: super::Pair,
     /// Side of a square, millimetres.
-    #[arg(long, default_value_t = BoardSpec::default().square_mm)]
+    #[arg(long, default_value_t = BoardOptions::default().square_mm)]
     pub square_mm: f64,
     /// Side of a marker (ChArUco), millimetres.
-    #[arg(long, default_value_t = BoardSpec::default().marker_mm)]
+    #[arg(long, default_value_t = BoardOptions::default().marker_mm)]
     pub marker_mm: f64,
     /// ArUco dictionary (ChArUco), OpenCV's name without `DICT_`.
-    #[arg(long, default_value_t = BoardSpec::default().dictionary)]
+    #[arg(long, default_value_t = BoardOptions::default().dictionary)]
     pub dictionary: String,
 }
 
 impl BoardArgs {
     /// The board described.
-    pub fn spec(&self) -> BoardSpec {
-        BoardSpec {
+    pub fn spec(&self) -> BoardOptions {
+        BoardOptions {
             kind: self.kind,
             squares: [self.squares.0, self.squares.1],
             square_mm: self.square_mm,

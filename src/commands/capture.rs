@@ -3,12 +3,12 @@
 
 use super::board::BoardArgs;
 use anyhow::{Context, Result};
-use rmvp_calib::lab::LabSetup;
-use rmvp_capture::camera::{describe, list_devices, Camera, CameraSettings};
+use rmvp_calib::lab::LabOptions;
+use rmvp_capture::camera::{describe, list_devices, CameraDevice, CameraOptions};
 use rmvp_capture::preview::{serve, Preview};
 use rmvp_capture::session::positioning::Positioning;
 use rmvp_capture::session::{capture, check_session_folder, SessionOptions};
-use rmvp_capture::simulator::{SimulatedCamera, SimulatedSetup, SimulatorConfig};
+use rmvp_capture::simulator::{SimulatedCamera, SimulatedSetup, SimulatorOptions};
 use rmvp_capture::PixelFormat;
 use rmvp_dataset::session::PositioningMode;
 use std::path::PathBuf;
@@ -82,11 +82,11 @@ pub struct Args {
 pub fn run(args: Args) -> Result<()> {
     check_session_folder(&args.output, args.resume)?;
     let simulator = if args.simulated {
-        let config = SimulatorConfig {
+        let config = SimulatorOptions {
             views: args.views,
             mesh: args.mesh.clone(),
             setup: args.scene.setup(),
-            ..SimulatorConfig::default()
+            ..SimulatorOptions::default()
         };
         eprintln!("starting the simulated camera {} (rendering its first view)", config.serial);
         Some(SimulatedCamera::start(&config)?)
@@ -94,7 +94,7 @@ pub fn run(args: Args) -> Result<()> {
         None
     };
     let selector = simulator.as_ref().map(|s| s.serial.clone()).or(args.camera.clone());
-    let mut camera = Camera::open(selector.as_deref())?;
+    let mut camera = CameraDevice::open(selector.as_deref())?;
     let id = camera.identity();
     eprintln!("camera: {} {} serial {} firmware {} ({})", id.vendor, id.model, id.serial, id.firmware, id.protocol);
     let positioning = match args.mode {
@@ -114,12 +114,12 @@ pub fn run(args: Args) -> Result<()> {
         object: args.object.clone(),
         views: args.views,
         dir: args.output.clone(),
-        camera: CameraSettings {
+        camera: CameraOptions {
             pixel_format: args.pixel_format.map(|f| f.name()),
             exposure_us: args.exposure,
             gain_db: args.gain,
             frame_rate: args.frame_rate,
-            ..CameraSettings::default()
+            ..CameraOptions::default()
         },
         exposures_us: if args.hdr.is_empty() { vec![args.exposure] } else { args.hdr.clone() },
         average: args.average,
@@ -176,11 +176,11 @@ impl SetupArgs {
     pub fn setup(&self) -> SimulatedSetup {
         match self.setup {
             Setup::Turntable => SimulatedSetup::Turntable,
-            Setup::Lab => SimulatedSetup::Lab(LabSetup {
+            Setup::Lab => SimulatedSetup::Lab(LabOptions {
                 board: self.board.spec(),
                 table: !self.no_table,
                 object: !self.no_object,
-                ..LabSetup::default()
+                ..LabOptions::default()
             }),
             Setup::Calibration => SimulatedSetup::Calibration(self.board.spec()),
         }
@@ -197,7 +197,7 @@ pub struct SimulateCameraArgs {
     #[arg(long, default_value = "127.0.0.1")]
     pub interface: String,
     /// Turntable poses.
-    #[arg(long, default_value_t = SimulatorConfig::default().views)]
+    #[arg(long, default_value_t = SimulatorOptions::default().views)]
     pub views: usize,
     /// Object mesh (PLY/OBJ; default: the built-in spot).
     #[arg(long)]
@@ -209,7 +209,7 @@ pub struct SimulateCameraArgs {
     #[arg(long, value_delimiter = ',', value_parser = str::parse::<PixelFormat>)]
     pub pixel_formats: Vec<PixelFormat>,
     /// Renderer samples per pixel.
-    #[arg(long, default_value_t = SimulatorConfig::default().spp)]
+    #[arg(long, default_value_t = SimulatorOptions::default().spp)]
     pub spp: u32,
     /// No shot or read noise (every frame of a pose identical; fastest).
     #[arg(long)]
@@ -224,7 +224,7 @@ pub struct SimulateCameraArgs {
 
 /// Run a simulated camera until killed.
 pub fn simulate_camera(args: SimulateCameraArgs) -> Result<()> {
-    let mut config = SimulatorConfig {
+    let mut config = SimulatorOptions {
         serial: args.serial,
         interface: args.interface,
         mesh: args.mesh,
@@ -234,7 +234,7 @@ pub fn simulate_camera(args: SimulateCameraArgs) -> Result<()> {
         noise: !args.noise_free,
         lost_packet_ratio: args.lost_packets,
         setup: args.scene.setup(),
-        ..SimulatorConfig::default()
+        ..SimulatorOptions::default()
     };
     if !args.pixel_formats.is_empty() {
         config.pixel_formats = args.pixel_formats.iter().map(PixelFormat::name).collect();

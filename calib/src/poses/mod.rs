@@ -107,7 +107,7 @@ pub enum PoseRequest {
         /// Intrinsics.
         calibration: crate::intrinsics::CameraCalibration,
         /// The board under the object.
-        board: crate::board::BoardSpec,
+        board: crate::board::BoardOptions,
         /// Strictness.
         options: charuco::CharucoOptions,
     },

@@ -12,7 +12,7 @@ pub mod hdr;
 pub mod positioning;
 pub mod storage;
 
-use crate::camera::{Camera, CameraSettings, Grab, TriggerSource};
+use crate::camera::{CameraDevice, CameraOptions, Grab, TriggerSource};
 use crate::correction::{mean_frame, subtract_dark};
 use crate::pipeline::{FrameProcessor, ProcessedFrame};
 use crate::preview::Preview;
@@ -63,7 +63,7 @@ pub struct SessionOptions {
     pub dir: PathBuf,
     /// Camera settings (its exposure is replaced by each of `exposures_us`, its trigger by the
     /// positioning's).
-    pub camera: CameraSettings,
+    pub camera: CameraOptions,
     /// Exposure times per view, microseconds (several: HDR bracketing).
     pub exposures_us: Vec<f64>,
     /// Frames averaged per exposure.
@@ -84,10 +84,10 @@ pub struct SessionOptions {
 
 impl Default for SessionOptions {
     /// `rmvp capture`'s defaults: 60 views of "object" into `session/`, one 20 ms exposure
-    /// ([`CameraSettings::default`]), no averaging, no dark frames, the operator positioning
+    /// ([`CameraOptions::default`]), no averaging, no dark frames, the operator positioning
     /// each view, 5 s for a frame to arrive.
     fn default() -> Self {
-        let camera = CameraSettings::default();
+        let camera = CameraOptions::default();
         Self {
             object: "object".into(),
             views: 60,
@@ -139,7 +139,7 @@ struct ProcessedView {
 
 /// Run (or resume) a session with `camera`. On any error, every view grabbed before it is still
 /// written, the manifest stays consistent, and the error says how to resume.
-pub fn capture(camera: &mut Camera, options: &SessionOptions) -> Result<SessionReport> {
+pub fn capture(camera: &mut CameraDevice, options: &SessionOptions) -> Result<SessionReport> {
     if options.views == 0 || options.exposures_us.is_empty() || options.average == 0 {
         return Err(Error::Unsupported("a session needs at least one view, exposure and frame".into()));
     }
@@ -215,9 +215,9 @@ pub fn check_session_folder(dir: &Path, resume: bool) -> Result<()> {
 /// Read the manifest to resume, or start a new one; check that a resumed session continues
 /// with the same camera and settings.
 fn open_manifest(
-    camera: &Camera,
+    camera: &CameraDevice,
     options: &SessionOptions,
-    settings: &CameraSettings,
+    settings: &CameraOptions,
     format: PixelFormat,
 ) -> Result<SessionManifest> {
     let dir = options.dir.as_path();
@@ -300,7 +300,7 @@ fn clean_incomplete(dir: &Path, manifest: &SessionManifest) -> Result<()> {
 /// The mean dark frame of each exposure: read from the session, or captured now; and the
 /// frames dropped (and grabbed again) while capturing them.
 fn dark_frames(
-    camera: &mut Camera,
+    camera: &mut CameraDevice,
     options: &SessionOptions,
     manifest: &mut SessionManifest,
     format: PixelFormat,
@@ -342,7 +342,7 @@ fn dark_frames(
 /// running), stop: frames the stream loses, or that arrive short, are counted in `dropped` and
 /// grabbed again.
 fn grab_burst(
-    camera: &mut Camera,
+    camera: &mut CameraDevice,
     options: &SessionOptions,
     exposure_us: f64,
     count: usize,
@@ -357,7 +357,7 @@ fn grab_burst(
 
 /// [`grab_burst`]'s frames, acquisition running.
 fn grab_frames(
-    camera: &mut Camera,
+    camera: &mut CameraDevice,
     options: &SessionOptions,
     count: usize,
     dropped: &mut usize,
@@ -397,7 +397,7 @@ fn grab_frames(
 /// Acquisition stage: position, bracket, grab; hand each view to processing. Returns the
 /// frames dropped (and grabbed again).
 fn acquire_views(
-    camera: &mut Camera,
+    camera: &mut CameraDevice,
     to_processing: SyncSender<GrabbedView>,
     options: &SessionOptions,
     start: usize,

@@ -1,7 +1,7 @@
 //! How the object and camera get to each view before it is captured: the operator (press
 //! Enter), a timer, a hardware trigger on `Line0`, or the simulated rig's motorised turntable.
 
-use crate::camera::Camera;
+use crate::camera::CameraDevice;
 use crate::camera::TriggerSource;
 use crate::{Error, Result};
 use rmvp_dataset::session::PositioningMode;
@@ -63,7 +63,7 @@ impl Positioning {
     }
 
     /// The turntable where the camera has one, else the operator.
-    pub fn default_for(camera: &Camera) -> Self {
+    pub fn default_for(camera: &CameraDevice) -> Self {
         if camera.has_feature("TurntablePosition") {
             Positioning::Turntable
         } else {
@@ -72,7 +72,7 @@ impl Positioning {
     }
 
     /// Bring the rig to view `index` of `total`.
-    pub fn prepare(&self, camera: &Camera, index: usize, total: usize, last: &LastView) -> Result<()> {
+    pub fn prepare(&self, camera: &CameraDevice, index: usize, total: usize, last: &LastView) -> Result<()> {
         match self {
             Positioning::Interactive => prompt(&format!(
                 "{}view {}/{total}: place the camera and press Enter",
@@ -100,7 +100,7 @@ impl Positioning {
     }
 
     /// Cover (or uncover) the lens for dark frames.
-    pub fn cap_lens(&self, camera: &Camera, covered: bool) -> Result<()> {
+    pub fn cap_lens(&self, camera: &CameraDevice, covered: bool) -> Result<()> {
         if camera.has_feature("LensCap") {
             return camera.set_feature("LensCap", if covered { "true" } else { "false" });
         }
@@ -135,7 +135,7 @@ fn prompt(message: &str) -> Result<()> {
 }
 
 /// Turn the turntable to `index` and wait until frames show it.
-fn turn_to(camera: &Camera, index: usize) -> Result<()> {
+fn turn_to(camera: &CameraDevice, index: usize) -> Result<()> {
     let positions = camera.integer("TurntablePositions")? as usize;
     if index >= positions {
         return Err(Error::camera(

@@ -58,7 +58,7 @@ impl Variant {
 /// How tasks are evaluated against their dataset's ground truth.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct EvaluationSettings {
+pub struct EvaluationOptions {
     /// Evaluate at all (then every dataset needs a ground-truth mesh).
     #[serde(default = "yes")]
     pub enabled: bool,
@@ -78,13 +78,13 @@ fn default_max_samples() -> usize {
     SurfaceOptions::default().max_samples
 }
 
-impl Default for EvaluationSettings {
+impl Default for EvaluationOptions {
     fn default() -> Self {
         Self { enabled: true, max_samples: default_max_samples(), threshold: None }
     }
 }
 
-impl EvaluationSettings {
+impl EvaluationOptions {
     /// Refuse settings no evaluation can run with.
     fn check(&self) -> std::result::Result<(), String> {
         if self.max_samples == 0 {
@@ -145,7 +145,7 @@ pub struct BatchPlan {
     /// The seeds.
     pub seeds: Vec<u64>,
     /// Evaluation settings.
-    pub evaluation: EvaluationSettings,
+    pub evaluation: EvaluationOptions,
     /// Every task.
     pub tasks: Vec<Task>,
 }
@@ -159,7 +159,7 @@ struct PlanFile {
     seeds: Vec<u64>,
     variant: Vec<Spanned<Variant>>,
     #[serde(default)]
-    evaluation: EvaluationSettings,
+    evaluation: EvaluationOptions,
 }
 
 fn default_seeds() -> Vec<u64> {
