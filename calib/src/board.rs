@@ -235,6 +235,11 @@ impl Board {
         Ok(Image::from_vec(w, h, 1, data)?)
     }
 
+    /// The print resolution of a page unless told otherwise, dots per inch.
+    pub const PAGE_DPI: f64 = 300.0;
+    /// The white margin of a page unless told otherwise, millimetres.
+    pub const PAGE_MARGIN_MM: f64 = 10.0;
+
     /// The board as a page to print: [`Board::draw`] at `dpi` with a white margin of
     /// `margin_mm` all round (detectors need a quiet zone beyond the outer squares), written by
     /// [`write_printable`] with its resolution so that it prints at its true size.

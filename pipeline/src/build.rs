@@ -79,6 +79,16 @@ pub enum TrainViews {
     Names(Vec<String>),
 }
 
+impl std::fmt::Display for TrainViews {
+    /// As the command line takes it: the count, or the names joined by commas.
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self {
+            TrainViews::Count(n) => write!(f, "{n}"),
+            TrainViews::Names(names) => write!(f, "{}", names.join(",")),
+        }
+    }
+}
+
 impl std::str::FromStr for TrainViews {
     type Err = String;
 

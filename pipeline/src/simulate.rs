@@ -84,7 +84,7 @@ impl Default for SimulateOptions {
             spp: 16,
             env: None,
             texture: None,
-            interface: Interface::Dielectric(1.5),
+            interface: Interface::Dielectric(Interface::DEFAULT_ETA),
             raw: false,
             seed: 0,
             layouts: vec![Layout::Nersp, Layout::Rmvp],

@@ -38,6 +38,11 @@ pub enum Interface {
     Conductor(f32, f32),
 }
 
+impl Interface {
+    /// The relative refractive index of a dielectric unless told otherwise (glass, plastics).
+    pub const DEFAULT_ETA: f32 = 1.5;
+}
+
 /// Fresnel intensity reflectances `(R_s, R_p)` of a dielectric (index `eta`) lit from outside.
 pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> (f32, f32) {
     let cos_i = cos_i.clamp(0.0, 1.0);

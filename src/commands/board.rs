@@ -45,10 +45,10 @@ pub struct Args {
     #[arg(short, long, default_value = "board.png")]
     output: PathBuf,
     /// Print resolution, dots per inch.
-    #[arg(long, default_value_t = 300.0)]
+    #[arg(long, default_value_t = Board::PAGE_DPI)]
     dpi: f64,
     /// White margin around the board, millimetres.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = Board::PAGE_MARGIN_MM)]
     margin_mm: f64,
     /// The board.
     #[command(flatten)]

@@ -62,7 +62,7 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub mode: Option<PositioningMode>,
     /// Seconds between views in timed mode.
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = Positioning::TIMED_INTERVAL.as_secs_f64())]
     pub interval: f64,
     /// Serve a live preview page on this address (e.g. 127.0.0.1:8642).
     #[arg(long)]
@@ -191,10 +191,10 @@ impl SetupArgs {
 #[derive(clap::Args, Clone)]
 pub struct SimulateCameraArgs {
     /// Serial number to answer to.
-    #[arg(long, default_value = "RMVPSIM0001")]
+    #[arg(long, default_value_t = SimulatorOptions::default().serial)]
     pub serial: String,
     /// Network interface or IPv4 address to answer on.
-    #[arg(long, default_value = "127.0.0.1")]
+    #[arg(long, default_value_t = SimulatorOptions::default().interface)]
     pub interface: String,
     /// Turntable poses.
     #[arg(long, default_value_t = SimulatorOptions::default().views)]
@@ -215,10 +215,10 @@ pub struct SimulateCameraArgs {
     #[arg(long)]
     pub noise_free: bool,
     /// Seed of the views and the noise.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = SimulatorOptions::default().seed)]
     pub seed: u64,
     /// Fraction of stream packets to drop on purpose (frames then arrive incomplete).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = SimulatorOptions::default().lost_packet_ratio)]
     pub lost_packets: f64,
 }
 

@@ -48,7 +48,7 @@ pub struct BuildArgs {
     #[arg(short, long)]
     output: PathBuf,
     /// Training views: a count, spread over the viewing directions, or names (`000,007,013`).
-    #[arg(long, value_parser = str::parse::<TrainViews>, default_value = "6")]
+    #[arg(long, value_parser = str::parse::<TrainViews>, default_value_t = BuildOptions::default().train)]
     train_views: TrainViews,
     /// The camera calibration the poses used (`camera.json`): its figures go in the record.
     #[arg(long)]

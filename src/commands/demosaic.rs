@@ -19,10 +19,10 @@ pub struct Args {
     #[arg(long, value_parser = str::parse::<PixelFormat>, default_value = "BayerRGPolarized12p")]
     pixel_format: PixelFormat,
     /// Frame width in pixels (bare buffers).
-    #[arg(long, default_value_t = 2448)]
+    #[arg(long, default_value_t = rmvp_capture::simulator::SENSOR_WIDTH)]
     width: usize,
     /// Frame height in pixels (bare buffers).
-    #[arg(long, default_value_t = 2048)]
+    #[arg(long, default_value_t = rmvp_capture::simulator::SENSOR_HEIGHT)]
     height: usize,
     /// Demosaicing (VNG: 8-bit frames only).
     #[arg(long, value_enum, default_value_t = DemosaicMethod::default())]

@@ -50,7 +50,7 @@ pub struct Args {
     #[arg(long, default_value_t = SimulateOptions::default().seed)]
     seed: u64,
     /// Relative refractive index of the dielectric surface.
-    #[arg(long, default_value_t = 1.5)]
+    #[arg(long, default_value_t = rmvp_render::pbrdf::Interface::DEFAULT_ETA)]
     eta: f32,
     /// Render a conductor of complex index N + iK instead ("N,K", e.g. gold at 600 nm "0.25,3.0").
     #[arg(long, value_parser = super::parse_numbers::<2>, conflicts_with = "eta")]

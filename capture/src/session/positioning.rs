@@ -33,6 +33,9 @@ pub struct LastView {
 }
 
 impl Positioning {
+    /// The pause of timed mode unless told otherwise.
+    pub const TIMED_INTERVAL: Duration = Duration::from_secs(3);
+
     /// The positioning of `mode`; `interval` is the pause of timed mode.
     pub fn new(mode: PositioningMode, interval: Duration) -> Self {
         match mode {
