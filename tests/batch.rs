@@ -182,11 +182,10 @@ fn a_slurm_array_preempted_failed_resubmitted_gathered_as_locally() {
 
     // Bad plans are refused before anything is written or submitted, naming the line.
     let bad = work.join("bad.toml");
-    std::fs::write(
-        &bad,
-        PLAN.replace("SPOT", spot.to_str().unwrap()).replace("iters = 20\ncheckpoint", "iter = 20\ncheckpoint"),
-    )
-    .unwrap();
+    let good_plan = PLAN.replace("SPOT", spot.to_str().unwrap());
+    let bad_plan = good_plan.replace("{ iters = 20, checkpoint", "{ iter = 20, checkpoint");
+    assert_ne!(bad_plan, good_plan, "the plan has no option to misspell");
+    std::fs::write(&bad, bad_plan).unwrap();
     let no_slurm = Command::new(env!("CARGO_BIN_EXE_rmvp"))
         .args(["batch", "run", bad.to_str().unwrap(), "-o", slurm_s, "--slurm"])
         .output()
