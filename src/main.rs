@@ -18,6 +18,9 @@ struct Cli {
     /// refused before they are read.
     #[arg(long, global = true, default_value_t = rmvp_dataset::io::input::DEFAULT_MAX_PIXELS)]
     max_pixels: u64,
+    /// No progress bars or progress lines.
+    #[arg(long, global = true)]
+    quiet: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -77,6 +80,7 @@ fn main() {
         rayon::ThreadPoolBuilder::new().num_threads(n).build_global().expect("thread pool set once");
     }
     rmvp_dataset::io::input::set_max_pixels(cli.max_pixels);
+    rmvp_dataset::progress::set_quiet(cli.quiet);
     let result = match cli.command {
         Command::Demo(args) => demo::run(args),
         Command::Simulate(args) => simulate::run(args),

@@ -452,3 +452,30 @@ fn recon_trains_at_a_downscale_and_writes_outputs_at_full_size() {
     let err = fails(&[&args[..], &["--downscale", "0"]].concat());
     assert!(err.contains("the training downscale factor must be at least 1"), "{err}");
 }
+
+#[test]
+fn recon_writes_progress_lines_into_a_log_during_training_and_none_when_quiet() {
+    let tmp = tempfile::tempdir().unwrap();
+    let spot = rmvp_testkit::fixture("spot_nersp");
+    let run = |extra: &[&str]| {
+        let out = tmp.path().join(format!("out{}", extra.len()));
+        let log = std::fs::File::create(tmp.path().join("stderr.log")).unwrap();
+        let mut args = vec!["recon", s(&spot), "-o", s(&out), "--iters", "80", "--batch", "32", "--mesh-only"];
+        args.extend(["--mesh-res", "24"]);
+        args.extend_from_slice(extra);
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_rmvp")).args(&args).stderr(log).status().unwrap();
+        assert!(status.success());
+        std::fs::read_to_string(tmp.path().join("stderr.log")).unwrap()
+    };
+    // Standard error into a file: plain lines (no bar), several while it trains.
+    let log = run(&[]);
+    let during: Vec<&str> = log
+        .lines()
+        .filter(|l| {
+            l.starts_with("recon: ") && !l.starts_with("recon: 80/80") && l.contains("/80 (") && l.contains("/s")
+        })
+        .collect();
+    assert!(during.len() >= 3, "{log}");
+    assert!(!log.contains('\r') && !log.contains("=>"), "{log}");
+    assert!(!run(&["--quiet"]).contains("recon: "));
+}
