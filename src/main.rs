@@ -72,6 +72,10 @@ enum Command {
     /// `rmvp dataset render-normals`.
     #[command(hide = true)]
     RenderNormals(dataset::RenderNormalsArgs),
+    /// Print the command-line reference (Markdown, `docs/cli.md`) generated from these
+    /// definitions.
+    #[command(hide = true)]
+    CliReference,
 }
 
 fn main() {
@@ -101,6 +105,11 @@ fn main() {
         Command::Info(args) => dataset::run(dataset::Command::Info(args)),
         Command::Convert(args) => dataset::run(dataset::Command::Convert(args)),
         Command::RenderNormals(args) => dataset::run(dataset::Command::RenderNormals(args)),
+        Command::CliReference => {
+            let options = clap_markdown::MarkdownOptions::new().show_footer(false).show_table_of_contents(true);
+            print!("{}", clap_markdown::help_markdown_custom::<Cli>(&options));
+            Ok(())
+        }
     };
     if let Err(e) = result {
         eprintln!("error: {}", describe(&e));

@@ -479,3 +479,13 @@ fn recon_writes_progress_lines_into_a_log_during_training_and_none_when_quiet() 
     assert!(!log.contains('\r') && !log.contains("=>"), "{log}");
     assert!(!run(&["--quiet"]).contains("recon: "));
 }
+
+#[test]
+fn the_cli_reference_in_docs_is_the_one_the_definitions_give() {
+    let generated = ok(&["cli-reference"]);
+    let committed = std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/docs/cli.md")).unwrap();
+    assert!(
+        generated == committed,
+        "docs/cli.md is out of date: regenerate it with `cargo run --release -- cli-reference > docs/cli.md`"
+    );
+}
