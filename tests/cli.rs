@@ -489,3 +489,13 @@ fn the_cli_reference_in_docs_is_the_one_the_definitions_give() {
         "docs/cli.md is out of date: regenerate it with `cargo run --release -- cli-reference > docs/cli.md`"
     );
 }
+
+#[test]
+fn a_folder_of_the_wrong_kind_is_told_what_it_is_and_what_to_run() {
+    let spot = rmvp_testkit::fixture("spot_nersp");
+    let tmp = tempfile::tempdir().unwrap();
+    let err = fails(&["calibrate", s(&spot), "-o", s(&tmp.path().join("camera.json"))]);
+    assert!(err.contains("is a folder but not a capture session") && !err.contains("PNG"), "{err}");
+    let err = fails(&["dataset", "build", s(&spot), "-o", s(&tmp.path().join("dataset"))]);
+    assert!(err.contains("a scene in the nersp layout, not a capture session") && err.contains("rmvp recon"), "{err}");
+}

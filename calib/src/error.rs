@@ -18,6 +18,9 @@ pub enum Error {
     /// Images of different sizes in one calibration.
     #[error("images of different sizes cannot be calibrated together: {0}")]
     MixedSizes(String),
+    /// Inputs that are neither a capture session nor picture files.
+    #[error("{0}")]
+    NotPictures(String),
     /// Pictures whose files name different cameras or focal lengths.
     #[error("pictures from different cameras cannot be calibrated together: {0}")]
     MixedCameras(String),

@@ -60,6 +60,13 @@ pub fn read_pictures(inputs: &[PathBuf]) -> Result<Vec<(String, Image<u8>)>> {
                 .collect();
         }
     }
+    if let Some(folder) = inputs.iter().find(|p| p.is_dir()) {
+        return Err(Error::NotPictures(format!(
+            "{} is a folder but not a capture session (it has no {SESSION_FILE}): give a session \
+             or picture files",
+            folder.display()
+        )));
+    }
     let pictures: Vec<(String, Image<u8>, Option<String>)> = inputs
         .par_iter()
         .map(|path| {

@@ -363,7 +363,12 @@ impl Drop for CameraDevice {
 /// A one-line list of cameras for messages.
 pub fn describe(devices: &[DeviceInfo]) -> String {
     if devices.is_empty() {
-        return "none (USB3 Vision: check the udev rule and usbfs memory, see docs/acquisition.md)".into();
+        return "none found. A USB3 Vision camera needs a USB 3 port, a udev rule that lets this user \
+                open it and about 1000 MB of usbfs memory (/sys/module/usbcore/parameters/\
+                usbfs_memory_mb; the camera setup script does both, see the acquisition guide); a \
+                GigE Vision camera must be on this machine's subnet. Without a camera, \
+                `rmvp capture --simulated` runs the same session on a simulated one."
+            .into();
     }
     devices.iter().map(|d| format!("{} [{} at {}]", d.id, d.protocol, d.address)).collect::<Vec<_>>().join(", ")
 }

@@ -437,6 +437,11 @@ fn start(options: &BuildOptions) -> Result<Option<BuildRecord>> {
 /// Build the dataset of `options` (or continue it) and return its record.
 pub fn build_dataset(options: &BuildOptions) -> Result<BuildRecord> {
     let session = &options.session;
+    if !session.join(rmvp_dataset::session::SESSION_FILE).is_file() {
+        if let Ok(layout) = Layout::detect(session) {
+            return Err(Error::SceneNotSession { path: session.clone(), layout: layout.name() });
+        }
+    }
     if !session.join(POSES_FILE).is_file() {
         return Err(Error::Unprepared { session: session.clone(), missing: "camera poses (poses.json)" });
     }

@@ -48,6 +48,14 @@ pub enum Error {
     /// Calibration, poses or masks.
     #[error(transparent)]
     Calib(#[from] rmvp_calib::Error),
+    /// A scene folder given where a capture session is needed.
+    #[error("{}: a scene in the {layout} layout, not a capture session: a dataset is built from a session (session.json, posed and masked)", path.display())]
+    SceneNotSession {
+        /// The folder.
+        path: std::path::PathBuf,
+        /// The scene's layout.
+        layout: &'static str,
+    },
     /// A session not yet posed or masked.
     #[error("{}: no {missing}; pose and mask the session first", session.display())]
     Unprepared {

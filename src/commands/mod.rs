@@ -68,6 +68,9 @@ pub fn hint(error: &anyhow::Error) -> Option<&'static str> {
     if error.chain().any(|e| too_large(&e)) {
         return Some("hint: --max-pixels N raises the limit for one command");
     }
+    if let Some(Pipeline::SceneNotSession { .. }) = error.chain().find_map(|e| e.downcast_ref::<Pipeline>()) {
+        return Some("hint: rmvp recon reconstructs a scene; rmvp dataset convert or export rewrites it");
+    }
     if let Some(Pipeline::BuildUnfinished { .. }) = error.chain().find_map(|e| e.downcast_ref::<Pipeline>()) {
         return Some("hint: run the same command with --resume to continue the build");
     }

@@ -10,7 +10,7 @@ use std::path::PathBuf;
 #[derive(clap::Args)]
 pub struct Args {
     /// Linear images behind polarizers at 0, 45, 90 and 135 degrees (PNG 8/16-bit or EXR).
-    #[arg(num_args = 4, required = true)]
+    #[arg(num_args = 4, required = true, value_names = ["I0", "I45", "I90", "I135"])]
     images: Vec<PathBuf>,
     /// Output folder.
     #[arg(short, long)]
