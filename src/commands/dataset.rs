@@ -123,7 +123,7 @@ pub struct ImportArgs {
     #[arg(short, long)]
     output: PathBuf,
     /// Layout to write.
-    #[arg(long, value_enum, default_value = "rmvp")]
+    #[arg(long = "layout", alias = "to", value_enum, default_value_t = Layout::Rmvp)]
     to: Layout,
 }
 
@@ -153,7 +153,7 @@ pub struct ConvertArgs {
     destination: PathBuf,
     /// Layout to write: `nersp` (the official NeRSP loader's), `rmvp` (ours), `rmvp3d` or
     /// `pandora` (their views with Stokes).
-    #[arg(long, value_enum)]
+    #[arg(long = "layout", alias = "to", value_enum)]
     to: Layout,
 }
 
@@ -163,9 +163,12 @@ pub struct RenderNormalsArgs {
     /// Mesh in the scene's world frame.
     #[arg(long)]
     mesh: PathBuf,
-    /// Scene whose cameras to use (either layout).
-    #[arg(long)]
-    scene: PathBuf,
+    /// Scene whose cameras to use (any layout).
+    #[arg(required_unless_present = "scene_flag")]
+    scene: Option<PathBuf>,
+    /// The scene, as a flag (older spelling).
+    #[arg(long = "scene", hide = true, conflicts_with = "scene")]
+    scene_flag: Option<PathBuf>,
     /// Output folder: `<view>_normal.exr` (world frame, N.X N.Y N.Z), `<view>_normal.png`,
     /// `<view>_mask.png`, `<view>_depth.exr` (Z).
     #[arg(short, long)]
@@ -234,7 +237,8 @@ pub fn run(command: Command) -> Result<()> {
             Ok(())
         }
         Command::RenderNormals(args) => {
-            let (mesh, scene) = (Mesh::read(&args.mesh)?, read_scene(&args.scene)?);
+            let folder = args.scene.or(args.scene_flag).expect("clap requires one");
+            let (mesh, scene) = (Mesh::read(&args.mesh)?, read_scene(&folder)?);
             write_ground_truth_maps(&mesh, &scene, &args.output, true)?;
             println!("{} views -> {}", scene.views.len(), args.output.display());
             Ok(())
