@@ -209,10 +209,10 @@ fn convert_round_trips_between_layouts() {
     let bunny = fixture("bunny_nersp");
     let tmp = tempfile::tempdir().unwrap();
     let (ours, back) = (tmp.path().join("ours"), tmp.path().join("back"));
-    ok(&["dataset", "convert", s(&bunny), s(&ours), "--to", "rmvp"]);
+    ok(&["dataset", "convert", s(&bunny), s(&ours), "--layout", "rmvp"]);
     assert!(ours.join("scene.json").is_file() && ours.join("views/000/stokes.exr").is_file());
     assert!(ok(&["info", s(&ours)]).contains("rmvp layout"));
-    ok(&["convert", s(&ours), s(&back), "--to", "nersp"]);
+    ok(&["convert", s(&ours), s(&back), "--to", "nersp"]); // the older spelling still works
     let a = rmvp_dataset::layout::read_scene(&bunny).unwrap();
     let b = rmvp_dataset::layout::read_scene(&back).unwrap();
     assert!(a == b, "scene changed through convert");
@@ -336,7 +336,7 @@ fn eval_and_render_normals_on_a_fixture() {
     assert!(text.contains("chamfer") && text.contains("F-score"), "{text}");
 
     let out = tmp.path().join("normals");
-    ok(&["dataset", "render-normals", "--mesh", s(&gt), "--scene", s(&spot), "-o", s(&out)]);
+    ok(&["dataset", "render-normals", s(&spot), "--mesh", s(&gt), "-o", s(&out)]);
     let ours = rmvp_dataset::io::exr::read_exr(&out.join("007_normal.exr"), &["N.X", "N.Y", "N.Z"]).unwrap();
     let theirs = rmvp_dataset::io::exr::read_exr(&spot.join("gt/normal/007.exr"), &["N.X", "N.Y", "N.Z"]).unwrap();
     let mut errors: Vec<f64> = ours
