@@ -60,7 +60,7 @@ pub struct BuildArgs {
     /// The scan's unit of length (checked where the world is in millimetres).
     #[arg(long, value_enum, default_value_t = LengthUnit::Mm)]
     scan_units: LengthUnit,
-    /// An equirectangular panorama (EXR, HDR, PNG or JPEG): the environment map, turned into
+    /// An equirectangular panorama (EXR, HDR, PNG, JPEG or TIFF): the environment map, turned into
     /// the world frame.
     #[arg(long)]
     env: Option<PathBuf>,
