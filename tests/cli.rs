@@ -499,3 +499,22 @@ fn a_folder_of_the_wrong_kind_is_told_what_it_is_and_what_to_run() {
     let err = fails(&["dataset", "build", s(&spot), "-o", s(&tmp.path().join("dataset"))]);
     assert!(err.contains("a scene in the nersp layout, not a capture session") && err.contains("rmvp recon"), "{err}");
 }
+
+#[test]
+fn the_board_page_warns_when_it_does_not_fit_the_paper() {
+    let tmp = tempfile::tempdir().unwrap();
+    let page = tmp.path().join("board.png");
+    let board = |extra: &[&str]| {
+        let mut args = vec!["board", "-o", s(&page), "--dpi", "60"];
+        args.extend_from_slice(extra);
+        let out = common::rmvp(&args);
+        assert!(out.status.success());
+        String::from_utf8(out.stderr).unwrap()
+    };
+    assert!(!board(&[]).contains("warning"), "the lab's 8x6 board of 30 mm fits A4");
+    for paper in ["a4", "letter"] {
+        let err = board(&["--squares", "10x8", "--paper", paper]);
+        assert!(err.contains("the page is 320 x 260 mm and does not fit"), "{err}");
+    }
+    assert!(!board(&["--squares", "10x8", "--paper", "a3"]).contains("warning"));
+}

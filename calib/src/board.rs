@@ -17,6 +17,41 @@ use rmvp_dataset::mesh::{ScalarKind, VertexProperty};
 use rmvp_dataset::{Image, Mesh};
 use serde::{Deserialize, Serialize};
 
+/// Paper sizes a board page is printed on.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum Paper {
+    /// ISO A4, 210 x 297 mm.
+    #[default]
+    A4,
+    /// ISO A3, 297 x 420 mm.
+    A3,
+    /// US Letter, 215.9 x 279.4 mm.
+    Letter,
+}
+
+impl Paper {
+    /// Width and height, millimetres (portrait).
+    pub fn size_mm(self) -> [f64; 2] {
+        match self {
+            Paper::A4 => [210.0, 297.0],
+            Paper::A3 => [297.0, 420.0],
+            Paper::Letter => [215.9, 279.4],
+        }
+    }
+
+    /// Whether a page of `page_mm` (width, height) fits on this paper, upright or turned.
+    pub fn holds(self, page_mm: [f64; 2]) -> bool {
+        let [a, b] = self.size_mm();
+        let [w, h] = page_mm;
+        (w <= a && h <= b) || (w <= b && h <= a)
+    }
+}
+
+/// The least margin (millimetres) that carries the board's parameters in print.
+pub const LABEL_MARGIN_MM: f64 = 6.0;
+
 /// The two kinds of board.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
@@ -235,6 +270,11 @@ impl Board {
         Ok(Image::from_vec(w, h, 1, data)?)
     }
 
+    /// The page of [`Board::printable`] with a margin of `margin_mm`, millimetres (width, height).
+    pub fn page_mm(&self, margin_mm: f64) -> [f64; 2] {
+        self.spec.size_mm().map(|v| v + 2.0 * margin_mm)
+    }
+
     /// The print resolution of a page unless told otherwise, dots per inch.
     pub const PAGE_DPI: f64 = 300.0;
     /// The white margin of a page unless told otherwise, millimetres.
@@ -242,7 +282,9 @@ impl Board {
 
     /// The board as a page to print: [`Board::draw`] at `dpi` with a white margin of
     /// `margin_mm` all round (detectors need a quiet zone beyond the outer squares), written by
-    /// [`write_printable`] with its resolution so that it prints at its true size.
+    /// [`write_printable`] with its resolution so that it prints at its true size. A margin of
+    /// [`LABEL_MARGIN_MM`] or more carries the board's parameters in small print along its
+    /// bottom edge (away from the board, which keeps its quiet zone).
     pub fn printable(&self, dpi: f64, margin_mm: f64) -> Result<Image<u8>> {
         if !(dpi.is_finite() && dpi >= 50.0 && margin_mm.is_finite() && margin_mm >= 0.0) {
             return Err(Error::Board(format!("a page at {dpi} dpi with a {margin_mm} mm margin")));
@@ -257,7 +299,47 @@ impl Board {
             let start = (y + margin) * w + margin;
             page.data_mut()[start..start + board.width()].copy_from_slice(row);
         }
+        if margin_mm >= LABEL_MARGIN_MM {
+            self.label(&mut page, margin)?;
+        }
         Ok(page)
+    }
+
+    /// The board's parameters, as `calibrate` and `poses` need them, written in the bottom
+    /// `margin` pixels of `page`.
+    fn label(&self, page: &mut Image<u8>, margin: usize) -> Result<()> {
+        let s = &self.spec;
+        let text = match s.kind {
+            BoardKind::Charuco => format!(
+                "ChArUco {}x{} squares of {} mm, markers {} mm, {}. Print at 100 %.",
+                s.squares[0], s.squares[1], s.square_mm, s.marker_mm, s.dictionary
+            ),
+            BoardKind::Chessboard => {
+                format!("Chessboard {}x{} squares of {} mm. Print at 100 %.", s.squares[0], s.squares[1], s.square_mm)
+            }
+        };
+        let (w, h) = page.size();
+        let font = imgproc::FONT_HERSHEY_SIMPLEX;
+        let mut baseline = 0;
+        let unit = imgproc::get_text_size(&text, font, 1.0, 1, &mut baseline)?;
+        // A third of the margin high, and no wider than the page less its margins.
+        let scale = (margin as f64 / 3.0 / unit.height as f64).min((w - 2 * margin) as f64 / unit.width as f64);
+        let thickness = ((scale * 1.5).round() as i32).max(1);
+        let mut mat = Mat::new_rows_cols_with_data(h as i32, w as i32, page.data())?.try_clone()?;
+        let origin = core::Point::new(margin as i32, (h - margin / 3) as i32);
+        imgproc::put_text(
+            &mut mat,
+            &text,
+            origin,
+            font,
+            scale,
+            core::Scalar::all(0.0),
+            thickness,
+            imgproc::LINE_AA,
+            false,
+        )?;
+        page.data_mut().copy_from_slice(mat.data_bytes()?);
+        Ok(())
     }
 
     /// The printed board as a mesh: one quad in the board frame's `z = 0` plane with texture

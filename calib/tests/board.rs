@@ -174,4 +174,14 @@ fn the_printable_page_prints_at_true_size_and_its_corners_are_where_the_board_fr
         assert!((x - point.x).abs() < tolerance && (y - point.y).abs() < tolerance, "{pixel} vs {point}");
     }
     assert!(board.printable(10.0, 5.0).is_err());
+    // The board's parameters are printed in the bottom margin, and only there.
+    let margin_px = margin.round() as usize;
+    let dark_rows: Vec<usize> = (0..ph).filter(|&y| (0..pw).any(|x| page.pixel(x, y)[0] < 128)).collect();
+    let below_board = dark_rows.iter().filter(|&&y| y >= ph - margin_px).count();
+    assert!(below_board > 5, "no label in the bottom margin");
+    assert!(dark_rows.iter().all(|&y| y >= margin_px), "print in the top margin");
+    let small = board.printable(dpi, 3.0).unwrap();
+    let narrow = (3.0 * px_per_mm).floor() as usize;
+    let bottom = small.height() - narrow..small.height();
+    assert!(bottom.flat_map(|y| (0..small.width()).map(move |x| (x, y))).all(|(x, y)| small.pixel(x, y)[0] == 255));
 }

@@ -2,7 +2,7 @@
 //! arguments, shared by every command that uses a board.
 
 use anyhow::Result;
-use rmvp_calib::board::{write_printable, Board, BoardKind, BoardOptions};
+use rmvp_calib::board::{write_printable, Board, BoardKind, BoardOptions, Paper};
 use std::path::PathBuf;
 
 /// The printed board (defaults: the lab's board, [`BoardOptions::default`]).
@@ -50,6 +50,9 @@ pub struct Args {
     /// White margin around the board, millimetres.
     #[arg(long, default_value_t = Board::PAGE_MARGIN_MM)]
     margin_mm: f64,
+    /// The paper it will be printed on (a page that does not fit is written with a warning).
+    #[arg(long, value_enum, default_value_t = Paper::default())]
+    paper: Paper,
     /// The board.
     #[command(flatten)]
     board: BoardArgs,
@@ -72,6 +75,15 @@ pub fn run(args: Args) -> Result<()> {
         spec.squares[0],
         spec.squares[1],
     );
+    let [pw, ph] = board.page_mm(args.margin_mm);
+    if !args.paper.holds([pw, ph]) {
+        let [a, b] = args.paper.size_mm();
+        eprintln!(
+            "warning: the page is {pw:.0} x {ph:.0} mm and does not fit {:?} paper ({a} x {b} mm) either way up: \
+             print it on larger paper (--paper), or choose fewer or smaller squares (--squares, --square-mm)",
+            args.paper
+        );
+    }
     println!(
         "print it at 100 % (no fit to page), glue it flat, measure a square and pass that as --square-mm \
          (and the marker as --marker-mm) to calibrate and poses"
