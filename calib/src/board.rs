@@ -211,19 +211,11 @@ fn from_opencv(spec: &BoardOptions, p: core::Point3f) -> Point3<f64> {
     Point3::new(p.x as f64, spec.size_mm()[1] - p.y as f64, -(p.z as f64))
 }
 
-/// Pixels as OpenCV 4.6 wants them: an 8-bit grey `Mat` over our image (copied).
+/// Pixels as OpenCV 4.6 wants them: an 8-bit grey `Mat` over our image (copied; colour turned
+/// grey by [`crate::pictures::grey_of_encoded`]).
 fn grey_mat(image: &Image<u8>) -> Result<Mat> {
-    let grey: Vec<u8> = if image.channels() == 1 {
-        image.data().to_vec()
-    } else {
-        let c = image.channels();
-        image
-            .data()
-            .chunks_exact(c)
-            .map(|p| ((p[0] as u16 + p[1.min(c - 1)] as u16 + p[2.min(c - 1)] as u16) / 3) as u8)
-            .collect()
-    };
-    let mat = Mat::from_slice(&grey)?;
+    let grey = crate::pictures::grey_of_encoded(image);
+    let mat = Mat::from_slice(grey.data())?;
     Ok(mat.reshape(1, image.height() as i32)?.try_clone()?)
 }
 

@@ -27,11 +27,12 @@ pub fn read_view_stokes(dir: &Path, view: &SessionView) -> Result<Stokes> {
     Ok(read_stokes(&view.folder(dir).join(VIEW_STOKES))?)
 }
 
-/// The grey level of 8-bit encoded pixels (1 or 3 channels): ITU-R BT.601 luma in OpenCV's
-/// fixed point (`cvtColor(RGB2GRAY)`, `imread(IMREAD_GRAYSCALE)`).
+/// The grey level of 8-bit encoded pixels: the first channel of grey (and grey-alpha) images,
+/// ITU-R BT.601 luma of RGB(A) in OpenCV's fixed point (`cvtColor(RGB2GRAY)`,
+/// `imread(IMREAD_GRAYSCALE)`).
 pub fn grey_of_encoded(image: &Image<u8>) -> Image<u8> {
-    if image.channels() == 1 {
-        return image.clone();
+    if image.channels() < 3 {
+        return image.channel(0);
     }
     let data = image
         .data()
