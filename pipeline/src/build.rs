@@ -386,28 +386,6 @@ fn world_in_millimetres(poses: &PoseSet) -> bool {
     poses.world.contains(BOARD_WORLD)
 }
 
-/// The recorded options that differ between `recorded` and `now`, each as `name: was -> now`
-/// (nested ones by their path, `reference.mesh_res`).
-fn changed_options(recorded: &BuildOptions, now: &BuildOptions) -> Vec<String> {
-    fn walk(path: &str, was: &serde_json::Value, now: &serde_json::Value, out: &mut Vec<String>) {
-        match (was, now) {
-            (serde_json::Value::Object(a), serde_json::Value::Object(b)) => {
-                for key in a.keys().chain(b.keys().filter(|k| !a.contains_key(*k))) {
-                    let null = serde_json::Value::Null;
-                    let name = if path.is_empty() { key.clone() } else { format!("{path}.{key}") };
-                    walk(&name, a.get(key).unwrap_or(&null), b.get(key).unwrap_or(&null), out);
-                }
-            }
-            (a, b) if a != b => out.push(format!("{path}: {a} -> {b}")),
-            _ => {}
-        }
-    }
-    let mut out = Vec::new();
-    let json = |o: &BuildOptions| serde_json::to_value(o).expect("plain data");
-    walk("", &json(recorded), &json(now), &mut out);
-    out
-}
-
 /// The record to continue, or a new one; refuses a folder that holds something else.
 fn start(options: &BuildOptions) -> Result<Option<BuildRecord>> {
     let out = &options.output;
@@ -422,7 +400,8 @@ fn start(options: &BuildOptions) -> Result<Option<BuildRecord>> {
                 Error::BuildUnfinished { path: out.clone(), done: done.join(", ") }
             });
         }
-        let changed = changed_options(&record.options, options);
+        let changed: Vec<String> =
+            rmvp_dataset::io::json::differences(&record.options, options).into_iter().map(|(_, c)| c).collect();
         if !changed.is_empty() {
             return Err(Error::BuildOptionsChanged { path: out.clone(), changed: changed.join(", ") });
         }

@@ -143,17 +143,11 @@ impl ReconOptions {
     /// The options that change what is trained (all but the mesh's and the checkpoints'),
     /// where `self` (recorded) and `now` differ: `name: recorded -> now` each.
     pub fn training_differences(&self, now: &ReconOptions) -> Vec<String> {
-        let (recorded, now) = (serde_json::to_value(self), serde_json::to_value(now));
-        let (Ok(serde_json::Value::Object(recorded)), Ok(serde_json::Value::Object(now))) = (recorded, now) else {
-            unreachable!("options serialise to a JSON object")
-        };
         const OUTPUT_ONLY: [&str; 4] = ["mesh_res", "mesh_device", "mesh_only", "checkpoint_every"];
-        recorded
-            .iter()
-            .filter(|(name, value)| !OUTPUT_ONLY.contains(&name.as_str()) && now.get(name.as_str()) != Some(value))
-            .map(|(name, value)| {
-                format!("{name}: {value} -> {}", now.get(name.as_str()).unwrap_or(&serde_json::Value::Null))
-            })
+        rmvp_dataset::io::json::differences(self, now)
+            .into_iter()
+            .filter(|(name, _)| !OUTPUT_ONLY.contains(&name.as_str()))
+            .map(|(_, change)| change)
             .collect()
     }
 
