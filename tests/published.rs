@@ -83,7 +83,7 @@ fn colmap_models(f: [f64; 2], c: [f64; 2]) -> Vec<(&'static str, Vec<f64>, Optio
 }
 
 /// `image` as a camera with lens distortion `d` sees what the pinhole camera `k` saw: each
-/// distorted pixel centre undistorted and looked up bilinearly (nearest for `u8` masks).
+/// distorted pixel centre undistorted and looked up bilinearly (masks are thresholded after).
 fn distorted(image: &Image<f32>, k: &Matrix3<f64>, d: &Distortion) -> Image<f32> {
     let (w, h, c) = (image.width(), image.height(), image.channels());
     let mut out = Image::new(w, h, c);
