@@ -1,24 +1,44 @@
 #!/usr/bin/env bash
-# Install the Debian 12 packages rmvp builds against. Idempotent: when everything is present it
-# only runs dpkg-query and returns in well under a second.
-#   scripts/install-system-deps.sh          what building and testing need
-#   scripts/install-system-deps.sh bench    also the Python baseline of bench/ (numpy, OpenCV)
+# Install the Debian 12 packages rmvp needs, for what is asked. Idempotent: when everything is
+# present it only runs dpkg-query and returns in well under a second.
+#   scripts/install-system-deps.sh [build]  building rmvp (and running it: the demo, capture,
+#                                           calibration, reconstruction, datasets, local batches)
+#   scripts/install-system-deps.sh colmap   also COLMAP, for `rmvp poses --method colmap`
+#   scripts/install-system-deps.sh slurm    also Slurm's client commands, for `rmvp batch --slurm`
+#   scripts/install-system-deps.sh test     what the tests start: COLMAP, a one-node Slurm
+#                                           (daemons and munge) and Chromium (the preview page)
+#   scripts/install-system-deps.sh bench    the tests' packages and the benchmarks' Python
+#                                           references (numpy, OpenCV, Mitsuba's LLVM)
 set -euo pipefail
 
+purpose="${1:-build}"
 packages=(
+  build-essential    # the C and C++ compilers and linker cargo calls
   pkg-config
-  libopencv-dev     # demosaicing (opencv crate, links the system OpenCV 4.6)
+  libopencv-dev      # demosaicing (opencv crate, links the system OpenCV 4.6)
   clang libclang-dev # the opencv crate generates its bindings with libclang at build time
   libaravis-dev      # GenICam cameras (aravis 0.8: USB3 Vision, GigE Vision, the simulated camera)
   libusb-1.0-0-dev   # required by aravis-0.8.pc
-  chromium           # headless browser for the live-preview page test
-  colmap             # camera poses by structure from motion (rmvp poses --method colmap), CPU SIFT
-  slurmctld slurmd slurm-client munge # rmvp batch --slurm; its test starts a one-node cluster
 )
-if [ "${1:-}" = bench ]; then
-  packages+=(python3-numpy python3-opencv) # same OpenCV 4.6 as the Rust side
-  packages+=(python3-venv libllvm19)         # Mitsuba 3 (from PyPI) and its LLVM back end
-fi
+colmap=(colmap)                                   # camera poses by structure from motion, CPU SIFT
+slurm_client=(slurm-client)                       # sbatch, squeue, sacct, scontrol
+slurm_node=(slurmctld slurmd slurm-client munge)  # the one-node cluster the batch test starts
+browser=(chromium)                                # headless browser for the live-preview page test
+case "$purpose" in
+  build) ;;
+  colmap) packages+=("${colmap[@]}") ;;
+  slurm) packages+=("${slurm_client[@]}") ;;
+  test) packages+=("${colmap[@]}" "${slurm_node[@]}" "${browser[@]}") ;;
+  bench)
+    packages+=("${colmap[@]}" "${slurm_node[@]}" "${browser[@]}")
+    packages+=(python3-numpy python3-opencv) # same OpenCV 4.6 as the Rust side
+    packages+=(python3-venv libllvm19)       # Mitsuba 3 (from PyPI) and its LLVM back end
+    ;;
+  *)
+    echo "usage: scripts/install-system-deps.sh [build|colmap|slurm|test|bench]" >&2
+    exit 2
+    ;;
+esac
 
 missing=()
 for p in "${packages[@]}"; do

@@ -242,6 +242,8 @@ fn a_slurm_array_preempted_failed_resubmitted_gathered_as_locally() {
     cluster.wait_for("the gather job", 300, || cluster.job_state(&gather_job) == "COMPLETED");
     let log = std::fs::read_to_string(&log0).unwrap();
     assert!(log.contains("checkpointed at iteration") && log.contains("task 0 (spot_nersp-full-s0): done"), "{log}");
+    // The task's log shows its training's progress as plain lines.
+    assert!(log.lines().any(|l| l.starts_with("spot_nersp-full-s0: ") && l.contains("/20 (")), "{log}");
     let result: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(task0.join("result.json")).unwrap()).unwrap();
     assert!(result["sessions"].as_u64().unwrap() >= 2, "{result}");

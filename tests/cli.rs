@@ -314,12 +314,11 @@ fn eval_and_render_normals_on_a_fixture() {
     let tmp = tempfile::tempdir().unwrap();
     let json: Evaluation = serde_json::from_str(&ok(&[
         "eval",
+        s(&spot),
         "--pred",
         s(&gt),
         "--gt",
         s(&gt),
-        "--scene",
-        s(&spot),
         "--json",
         "--max-samples",
         "20000",

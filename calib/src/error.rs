@@ -53,7 +53,7 @@ pub enum Error {
         views: (u32, u32),
     },
     /// The `colmap` program is not there.
-    #[error("the colmap program was not found ({program}): install COLMAP (Debian: apt-get install colmap; scripts/install-system-deps.sh does)")]
+    #[error("the colmap program was not found ({program}): install COLMAP (Debian: apt-get install colmap, or scripts/install-system-deps.sh colmap)")]
     ColmapMissing {
         /// The program asked for.
         program: String,

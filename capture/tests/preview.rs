@@ -59,7 +59,7 @@ fn the_preview_page_shows_the_latest_view_in_chromium() {
     let chromium = ["chromium", "chromium-browser", "google-chrome"]
         .into_iter()
         .find(|c| std::process::Command::new(c).arg("--version").output().is_ok_and(|o| o.status.success()))
-        .expect("Chromium is needed for this test: run scripts/install-system-deps.sh");
+        .expect("Chromium is needed for this test: run scripts/install-system-deps.sh test");
     let out = std::process::Command::new(chromium)
         .args([
             "--headless",

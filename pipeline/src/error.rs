@@ -134,7 +134,7 @@ pub enum Error {
         why: String,
     },
     /// A Slurm command that is not installed.
-    #[error("{command}: not found (Slurm's commands are not installed or not on PATH)")]
+    #[error("{command}: not found (Slurm's commands are not installed or not on PATH; on Debian: apt-get install slurm-client, or scripts/install-system-deps.sh slurm)")]
     SlurmMissing {
         /// The command.
         command: String,

@@ -386,6 +386,6 @@ view is where its depth is positive. Environment map: {ENV}.
 ## Loading
 
 - NeRSP: point its `data_dir` at an object's `nersp/` folder (`data_type = ours_real`).
-- rmvp: `rmvp recon OBJECT/nersp -o out` (either layout), `rmvp eval --pred out/mesh.ply --gt OBJECT/nersp/gt/mesh.ply --scene OBJECT/nersp`.
+- rmvp: `rmvp recon OBJECT/nersp -o out` (either layout), `rmvp eval OBJECT/nersp --pred out/mesh.ply --gt OBJECT/nersp/gt/mesh.ply`.
 - Exports: `rmvp dataset export OBJECT/rmvp --format nerfstudio|colmap|rmvp3d -o DIR`.
 "#;

@@ -22,8 +22,8 @@ pub enum Preset {
     /// The official NeRSP/NeuS networks (8x256 SDF MLP): hours.
     Paper,
     /// The fast preset's networks on a finer, larger hash grid (to 2048 cells per axis), twice
-    /// the rays and four times the iterations: the reference shape of a dataset from 20-60
-    /// views at 1224x1024 (24 views: 65 minutes on one thread, about 40 on two).
+    /// the rays and 4000 iterations: the reference shape of a dataset from 20-60 views at
+    /// 1224x1024 (24 views: 65 minutes on one thread, about 40 on two).
     Dense,
 }
 

@@ -1,4 +1,4 @@
-//! `rmvp eval --pred MESH --gt MESH [--scene SCENE] [--json]` ([`rmvp_align::evaluate`]).
+//! `rmvp eval [SCENE] --pred MESH --gt MESH [--json]` ([`rmvp_align::evaluate`]).
 
 use anyhow::Result;
 use rmvp_align::surface::read_surface;
@@ -18,8 +18,10 @@ pub struct Args {
     gt: PathBuf,
     /// A scene with ground-truth normal maps (`gt/normal` or our layout): also report the normal
     /// angular error per view.
-    #[arg(long)]
     scene: Option<PathBuf>,
+    /// The scene, as a flag (older spelling).
+    #[arg(long = "scene", hide = true, conflicts_with = "scene")]
+    scene_flag: Option<PathBuf>,
     /// Write the figures to stdout as JSON.
     #[arg(long)]
     json: bool,
@@ -51,7 +53,7 @@ pub fn run(args: Args) -> Result<()> {
         threshold: args.threshold,
         ..defaults
     };
-    let scene = args.scene.as_ref().map(|dir| read_scene(dir)).transpose()?;
+    let scene = args.scene.or(args.scene_flag).map(|dir| read_scene(&dir)).transpose()?;
     let evaluation = evaluate(&pred, &gt, scene.as_ref(), &options)?;
     if let Some(dir) = &args.output {
         evaluation.write_error_maps(dir)?;

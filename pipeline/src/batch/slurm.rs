@@ -16,6 +16,7 @@ use super::signals::StopSignals;
 use super::task::{run_task, task_state, TaskOutcome, TaskState};
 use crate::{Error, Result};
 use rmvp_dataset::io::json::{read_json, write_json};
+use rmvp_dataset::progress::progress_bar;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -348,7 +349,14 @@ pub fn run_array_task(dir: &Path, index: usize, signals: &StopSignals) -> Result
         let why = format!("has {} tasks; there is no task {index}", plan.tasks.len());
         return Err(Error::Folder { path: dir.join(super::plan::PLAN_FILE), why });
     }
-    let outcome = run_task(&plan, dir, index, &signals.any, |_, _| {})?;
+    // The task's log (Slurm's output file) gets a progress line every 5 % and 30 s of training.
+    let progress = progress_bar(true, 0, &plan.tasks[index].id);
+    let outcome = run_task(&plan, dir, index, &signals.any, |iteration, total| {
+        progress.set_length(total.into());
+        progress.set_position(iteration.into());
+    });
+    progress.abandon();
+    let outcome = outcome?;
     if matches!(outcome, TaskOutcome::Stopped { .. }) && signals.preempted() {
         requeue_this_task()?;
     }
