@@ -1,15 +1,26 @@
-//! Reconstruction quality on the evaluation set (`rmvp_pipeline::evaluation_set`): each scene
-//! simulated (6 training and 6 held-out views), reconstructed with the default preset and its
-//! two ablations, and evaluated; one Markdown table: scene, minutes (training + outputs),
-//! Chamfer, F-score, normal MAE on the training and on the held-out views.
+//! Reconstruction quality on two sets of scenes, reconstructed with the default preset and its
+//! two ablations and evaluated; one Markdown table: scene, minutes (training + outputs),
+//! Chamfer, F-score, normal MAE over the training views, the held-out views and all views, and
+//! each set's mean.
 //!
-//! `cargo bench --bench quality [-- --scenes bumps,knot --variants full,no-geometric
-//! --res 256x256 --views 6 --iters N --rays N --seed S --preset fast|dense|paper --mesh-res N
-//! --curve 250,500]` (part of `./run bench` with its defaults). `--views` sets the training
+//! - `mitsuba`, the main set: the scenes rendered by Mitsuba 3, an independent polarized
+//!   renderer whose materials rmvp's model does not match exactly (`../shared/evalset/*` or
+//!   `$RMVP_EVALSET`, then `../shared/fixtures/*` or `$RMVP_FIXTURES`), read as they are.
+//! - `ours`: `rmvp_pipeline::evaluation_set`'s procedural and public meshes, simulated by rmvp's
+//!   own renderer (6 training and 6 held-out views) at `--res`.
+//!
+//! `cargo bench --bench quality [-- --sets mitsuba,ours --scenes horse,bumps --variants
+//! full,no-geometric --res 256x256 --views 6 --iters N --rays N --seed S --preset
+//! fast|dense|paper --mesh-res N --curve 250,500 --error-maps]` (part of `./run bench` with its
+//! defaults). `--scenes` picks scenes of the sets by name. `--views` sets our scenes' training
 //! views (the held-out six stay the same). `--curve` also measures the model at those
-//! iterations of the run (its mesh; training minutes so far): quality against time. Scenes are
-//! simulated once into `target/tmp/bench-quality/<WxH>/<scene>` (`<WxH>-<N>views` for other
-//! than 6 training views) and reused; each row is kept in `results.jsonl` there. The bunny comes from `$RMVP_MESHES` or `../shared/meshes`.
+//! iterations of the run (its mesh; training minutes so far): quality against time.
+//! `--error-maps` writes each view's normal error map (`normal_errors/<view>_normal_error.png`)
+//! beside the run's mesh. Our scenes are simulated once into
+//! `target/tmp/bench-quality/<WxH>/<scene>` (`<WxH>-<N>views` for other than 6 training views)
+//! and reused; runs of the Mitsuba scenes go into `target/tmp/bench-quality/mitsuba/<scene>`;
+//! each row is kept in `results.jsonl` there. The bunny comes from `$RMVP_MESHES` or
+//! `../shared/meshes`.
 //! Variants not run by default, each the default with one change (`VARIANTS`): `near-surface`
 //! 24 uniform and 40 up-sampled samples per ray instead of 32 and 32 (the same samples, more of
 //! them near the surface); `wide-margin` the masks dilated by 32 pixels instead of 8;
@@ -22,7 +33,7 @@
 use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
 use rmvp_dataset::{Mesh, Scene, Split};
-use rmvp_pipeline::evaluation_set::{scene, CaptureOptions, SCENES};
+use rmvp_pipeline::evaluation_set::{CaptureOptions, SCENES};
 use rmvp_recon::extract::Device;
 use rmvp_recon::options::{ReconOptions, RunControl};
 use rmvp_recon::presets::Preset;
@@ -34,6 +45,7 @@ use std::time::Instant;
 
 /// One reconstruction of one scene.
 struct Row {
+    set: &'static str,
     scene: String,
     variant: String,
     preset: Preset,
@@ -45,10 +57,12 @@ struct Row {
     f_score: f64,
     normal_mae_train_deg: f64,
     normal_mae_held_out_deg: f64,
+    normal_mae_deg: f64,
 }
 
 /// One reconstruction's identity, as its rows show it.
 struct Run<'a> {
+    set: &'static str,
     scene: &'a str,
     variant: &'a str,
     preset: Preset,
@@ -58,7 +72,9 @@ struct Run<'a> {
 }
 
 /// Evaluate `dir`'s mesh (the model after `iterations`, trained and written in `seconds`)
-/// against the scene's truth; print the row and keep it in `log`.
+/// against the scene's truth, with the views' error maps when `error_maps`; print the row and
+/// keep it in `log`.
+#[allow(clippy::too_many_arguments)]
 fn measure(
     log: &mut std::fs::File,
     run: &Run,
@@ -67,10 +83,15 @@ fn measure(
     dir: &Path,
     iterations: u32,
     seconds: (f64, f64),
+    error_maps: bool,
 ) -> Row {
     let pred = Mesh::read(&dir.join(MESH)).expect("reconstructed mesh");
     let evaluation = evaluate(&pred, gt, Some(data), &SurfaceOptions::default()).expect("evaluation");
+    if error_maps {
+        evaluation.write_error_maps(&dir.join("normal_errors")).expect("error maps");
+    }
     let row = Row {
+        set: run.set,
         scene: run.scene.to_string(),
         variant: run.variant.to_string(),
         preset: run.preset,
@@ -82,9 +103,11 @@ fn measure(
         f_score: evaluation.surface.fscore,
         normal_mae_train_deg: evaluation.split_normal_mae_deg(Split::Train).unwrap_or(f64::NAN),
         normal_mae_held_out_deg: evaluation.split_normal_mae_deg(Split::Eval).unwrap_or(f64::NAN),
+        normal_mae_deg: evaluation.normal_mae_deg.unwrap_or(f64::NAN),
     };
     println!(
-        "| {} | {} | {} | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} |",
+        "| {} | {} | {} | {} | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} | {:.2} |",
+        row.set,
         row.scene,
         row.variant,
         row.iterations,
@@ -93,13 +116,15 @@ fn measure(
         row.chamfer,
         row.f_score,
         row.normal_mae_train_deg,
-        row.normal_mae_held_out_deg
+        row.normal_mae_held_out_deg,
+        row.normal_mae_deg
     );
     let line = serde_json::json!({
-        "scene": row.scene, "variant": row.variant, "preset": row.preset, "size": row.size, "views": run.views,
+        "set": row.set, "scene": row.scene, "variant": row.variant, "preset": row.preset, "size": row.size, "views": run.views,
         "iterations": row.iterations, "seed": run.seed, "train_minutes": row.train_minutes,
         "output_minutes": row.output_minutes, "chamfer": row.chamfer, "f_score": row.f_score,
         "normal_mae_train_deg": row.normal_mae_train_deg, "normal_mae_held_out_deg": row.normal_mae_held_out_deg,
+        "normal_mae_deg": row.normal_mae_deg,
     });
     writeln!(log, "{line}").expect("results log");
     row
@@ -107,6 +132,9 @@ fn measure(
 
 /// What the command line asked for.
 struct Plan {
+    /// The sets of scenes, in order: `mitsuba`, `ours`.
+    sets: Vec<String>,
+    /// Only the scenes of these names (empty: every scene of the sets).
     scenes: Vec<String>,
     variants: Vec<String>,
     size: (u32, u32),
@@ -120,11 +148,14 @@ struct Plan {
     mesh_resolution: usize,
     /// Iterations at which the model is measured too.
     curve: Vec<u32>,
+    /// Write each view's normal error map.
+    error_maps: bool,
 }
 
 fn plan() -> Plan {
     let mut plan = Plan {
-        scenes: SCENES.iter().map(|s| s.name.to_string()).collect(),
+        sets: vec!["mitsuba".into(), "ours".into()],
+        scenes: Vec::new(),
         variants: ["full", "no-geometric", "no-photometric"].map(String::from).to_vec(),
         size: (256, 256),
         views: CaptureOptions::default().views,
@@ -134,12 +165,18 @@ fn plan() -> Plan {
         preset: Preset::Fast,
         mesh_resolution: ReconOptions::default().mesh_res,
         curve: Vec::new(),
+        error_maps: false,
     };
-    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
+    let mut args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
+    if let Some(at) = args.iter().position(|a| a == "--error-maps") {
+        plan.error_maps = true;
+        args.remove(at);
+    }
     for pair in args.chunks(2) {
         let value = pair.get(1).unwrap_or_else(|| panic!("{} needs a value", pair[0]));
         let list = || value.split(',').map(String::from).collect::<Vec<_>>();
         match pair[0].as_str() {
+            "--sets" => plan.sets = list(),
             "--scenes" => plan.scenes = list(),
             "--variants" => plan.variants = list(),
             "--res" => {
@@ -204,35 +241,77 @@ fn meshes() -> PathBuf {
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes"))
 }
 
+/// A scene to reconstruct: its set, its name, the scene itself and where its runs go.
+struct Subject {
+    set: &'static str,
+    name: String,
+    data: Scene,
+    runs: PathBuf,
+}
+
+/// The plan's scenes, set by set: the Mitsuba scenes as they are, ours simulated (once) into
+/// `root/<WxH>`.
+fn subjects(plan: &Plan, root: &Path) -> Vec<Subject> {
+    let wanted = |name: &str| plan.scenes.is_empty() || plan.scenes.iter().any(|s| s == name);
+    let mut subjects = Vec::new();
+    for set in &plan.sets {
+        match set.as_str() {
+            "mitsuba" => {
+                let found = rmvp_testkit::mitsuba_scenes();
+                assert!(!found.is_empty(), "no Mitsuba scenes: set RMVP_EVALSET and RMVP_FIXTURES");
+                for dir in found {
+                    let name = dir.file_name().expect("a folder name").to_string_lossy().to_string();
+                    if wanted(&name) {
+                        let data = read_scene(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
+                        subjects.push(Subject { set: "mitsuba", runs: root.join("mitsuba").join(&name), name, data });
+                    }
+                }
+            }
+            "ours" => {
+                let (w, h) = plan.size;
+                let defaults = CaptureOptions::default();
+                let folder = match plan.views {
+                    n if n == defaults.views => format!("{w}x{h}"),
+                    n => format!("{w}x{h}-{n}views"),
+                };
+                let capture = CaptureOptions { size: plan.size, views: plan.views, meshes: meshes(), ..defaults };
+                for entry in SCENES.iter().filter(|s| wanted(s.name)) {
+                    let dir = root.join(&folder).join(entry.name);
+                    let dataset = dir.join("nersp");
+                    if read_scene(&dataset).is_err() {
+                        let _ = std::fs::remove_dir_all(&dir);
+                        entry.simulate(&dir, &capture).unwrap_or_else(|e| panic!("simulating {}: {e}", entry.name));
+                    }
+                    let data = read_scene(&dataset).expect("simulated scene");
+                    subjects.push(Subject { set: "ours", name: entry.name.to_string(), data, runs: dir });
+                }
+            }
+            other => panic!("unknown set {other} (mitsuba, ours)"),
+        }
+    }
+    assert!(!subjects.is_empty(), "no scene of the sets {:?} is named {:?}", plan.sets, plan.scenes);
+    subjects
+}
+
 fn main() {
     if !std::env::args().any(|a| a == "--bench") {
         return; // run by `cargo test --all-targets` (no `--bench`): measure only under `cargo bench`
     }
     let plan = plan();
-    let (w, h) = plan.size;
-    let defaults = CaptureOptions::default();
-    let folder = match plan.views {
-        n if n == defaults.views => format!("{w}x{h}"),
-        n => format!("{w}x{h}-{n}views"),
-    };
-    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench-quality").join(folder);
-    let capture = CaptureOptions { size: plan.size, views: plan.views, meshes: meshes(), ..defaults };
-    println!("| scene | variant | iterations | minutes (train + outputs) | Chamfer | F-score | normal MAE train | held out |");
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- |");
-    std::fs::create_dir_all(&root).expect("bench folder");
-    let log = root.join("results.jsonl");
-    let mut results = std::fs::OpenOptions::new().create(true).append(true).open(&log).expect("results log");
+    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench-quality");
+    let subjects = subjects(&plan, &root);
+    println!(
+        "| set | scene | variant | iterations | minutes (train + outputs) | Chamfer | F-score | normal MAE train | held out | all |"
+    );
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     let mut rows = Vec::new();
-    for name in &plan.scenes {
-        let entry = scene(name).unwrap_or_else(|| panic!("unknown scene {name}"));
-        let dir = root.join(name);
-        let dataset = dir.join("nersp");
-        if read_scene(&dataset).is_err() {
-            let _ = std::fs::remove_dir_all(&dir);
-            entry.simulate(&dir, &capture).unwrap_or_else(|e| panic!("simulating {name}: {e}"));
-        }
-        let data = read_scene(&dataset).expect("simulated scene");
+    for subject in &subjects {
+        let (data, name) = (&subject.data, &subject.name);
+        std::fs::create_dir_all(&subject.runs).expect("bench folder");
+        let log = subject.runs.parent().expect("a set folder").join("results.jsonl");
+        let mut results = std::fs::OpenOptions::new().create(true).append(true).open(&log).expect("results log");
         let gt = data.mesh.clone().expect("ground-truth mesh");
+        let size = data.views.first().map_or((0, 0), |v| (v.camera.width, v.camera.height));
         for variant in &plan.variants {
             let options = options(variant, &plan);
             let variant_name = variant.split(':').next().unwrap_or(variant).to_string();
@@ -247,26 +326,28 @@ fn main() {
             if let Some(n) = plan.rays {
                 label += &format!("-{n}rays");
             }
-            let out = dir.join(format!("{label}-seed{}", plan.seed));
+            let out = subject.runs.join(format!("{label}-seed{}", plan.seed));
             let _ = std::fs::remove_dir_all(&out);
             let run = Run {
+                set: subject.set,
                 scene: name,
                 variant: &label,
                 preset: plan.preset,
-                size: (w, h),
-                views: plan.views,
+                size,
+                views: data.views.iter().filter(|v| v.split == Split::Train).count(),
                 seed: plan.seed,
             };
             let start = Instant::now();
             // Training time so far: the wall time less the time spent measuring the curve.
             let (mut trained, mut measuring) = (0.0, 0.0);
-            let trainer = reconstruct(&data, &out, &options, RunControl::default(), |_, trainer| {
+            let trainer = reconstruct(data, &out, &options, RunControl::default(), |_, trainer| {
                 trained = start.elapsed().as_secs_f64() - measuring;
                 if plan.curve.contains(&trainer.iteration) && trainer.iteration < trainer.config.iterations {
                     let at = out.join(format!("at-{}", trainer.iteration));
                     write_mesh(trainer, &at, plan.mesh_resolution, Device::Cpu).expect("mesh during training");
                     let seconds = start.elapsed().as_secs_f64() - measuring - trained;
-                    measure(&mut results, &run, &data, &gt, &at, trainer.iteration, (trained, seconds));
+                    let iteration = trainer.iteration;
+                    measure(&mut results, &run, data, &gt, &at, iteration, (trained, seconds), plan.error_maps);
                     measuring = start.elapsed().as_secs_f64() - trained;
                 }
                 ControlFlow::Continue(())
@@ -274,26 +355,29 @@ fn main() {
             .unwrap_or_else(|e| panic!("{name} {variant}: {e}"));
             let outputs = start.elapsed().as_secs_f64() - measuring - trained;
             let iterations = trainer.config.iterations;
-            rows.push(measure(&mut results, &run, &data, &gt, &out, iterations, (trained, outputs)));
+            let seconds = (trained, outputs);
+            rows.push(measure(&mut results, &run, data, &gt, &out, iterations, seconds, plan.error_maps));
         }
     }
-    let mut variants: Vec<&str> = Vec::new();
+    let mut groups: Vec<(&str, &str)> = Vec::new();
     for row in &rows {
-        if !variants.contains(&row.variant.as_str()) {
-            variants.push(&row.variant);
+        if !groups.contains(&(row.set, row.variant.as_str())) {
+            groups.push((row.set, &row.variant));
         }
     }
-    for variant in variants {
-        let of: Vec<&Row> = rows.iter().filter(|r| r.variant == variant).collect();
+    for (set, variant) in groups {
+        let of: Vec<&Row> = rows.iter().filter(|r| r.set == set && r.variant == variant).collect();
         let mean = |f: fn(&Row) -> f64| of.iter().map(|r| f(r)).sum::<f64>() / of.len() as f64;
         println!(
-            "| mean | {variant} | | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} |",
+            "| {set} | mean of {} | {variant} | | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} | {:.2} |",
+            of.len(),
             mean(|r| r.train_minutes),
             mean(|r| r.output_minutes),
             mean(|r| r.chamfer),
             mean(|r| r.f_score),
             mean(|r| r.normal_mae_train_deg),
-            mean(|r| r.normal_mae_held_out_deg)
+            mean(|r| r.normal_mae_held_out_deg),
+            mean(|r| r.normal_mae_deg)
         );
     }
 }

@@ -31,6 +31,28 @@ pub fn fixture_scenes() -> Vec<PathBuf> {
     scenes
 }
 
+/// The evaluation scenes rendered by Mitsuba 3: `$RMVP_EVALSET`, else `shared/evalset` beside
+/// the checkout.
+pub fn evalset_root() -> PathBuf {
+    std::env::var_os("RMVP_EVALSET")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/evalset"))
+}
+
+/// Every scene rendered by Mitsuba 3 that is at hand, the evaluation set's and the fixtures'
+/// (folders with `cameras.npz`), each set sorted; empty where neither folder exists.
+pub fn mitsuba_scenes() -> Vec<PathBuf> {
+    let mut all = Vec::new();
+    for root in [evalset_root(), fixtures_root()] {
+        let Ok(entries) = std::fs::read_dir(&root) else { continue };
+        let mut scenes: Vec<PathBuf> =
+            entries.filter_map(|e| e.ok()).map(|e| e.path()).filter(|p| p.join("cameras.npz").is_file()).collect();
+        scenes.sort();
+        all.extend(scenes);
+    }
+    all
+}
+
 /// OpenCV's chessboard photographs (`left01.jpg` ... `left14.jpg`: 13 pictures of a board of
 /// 10x7 squares, 9x6 inner corners, from a 640x480 camera), sorted, as
 /// `scripts/fetch-test-photographs.sh` (run by `./run test`) takes them out of Debian's
