@@ -72,20 +72,19 @@ struct Run<'a> {
 }
 
 /// Evaluate `dir`'s mesh (the model after `iterations`, trained and written in `seconds`)
-/// against the scene's truth, with the views' error maps when `error_maps`; print the row and
-/// keep it in `log`.
-#[allow(clippy::too_many_arguments)]
+/// against the scene's truth (its mesh and normal maps), with the views' error maps when
+/// `error_maps`; print the row and keep it in `log`.
 fn measure(
     log: &mut std::fs::File,
     run: &Run,
     data: &Scene,
-    gt: &Mesh,
     dir: &Path,
     iterations: u32,
     seconds: (f64, f64),
     error_maps: bool,
 ) -> Row {
     let pred = Mesh::read(&dir.join(MESH)).expect("reconstructed mesh");
+    let gt = data.mesh.as_ref().expect("ground-truth mesh");
     let evaluation = evaluate(&pred, gt, Some(data), &SurfaceOptions::default()).expect("evaluation");
     if error_maps {
         evaluation.write_error_maps(&dir.join("normal_errors")).expect("error maps");
@@ -241,16 +240,16 @@ fn meshes() -> PathBuf {
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/meshes"))
 }
 
-/// A scene to reconstruct: its set, its name, the scene itself and where its runs go.
+/// A scene to reconstruct: its set, its name, its folder and where its runs go.
 struct Subject {
     set: &'static str,
     name: String,
-    data: Scene,
+    scene: PathBuf,
     runs: PathBuf,
 }
 
 /// The plan's scenes, set by set: the Mitsuba scenes as they are, ours simulated (once) into
-/// `root/<WxH>`.
+/// `root/<WxH>`. Each is read when its turn comes.
 fn subjects(plan: &Plan, root: &Path) -> Vec<Subject> {
     let wanted = |name: &str| plan.scenes.is_empty() || plan.scenes.iter().any(|s| s == name);
     let mut subjects = Vec::new();
@@ -262,8 +261,12 @@ fn subjects(plan: &Plan, root: &Path) -> Vec<Subject> {
                 for dir in found {
                     let name = dir.file_name().expect("a folder name").to_string_lossy().to_string();
                     if wanted(&name) {
-                        let data = read_scene(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
-                        subjects.push(Subject { set: "mitsuba", runs: root.join("mitsuba").join(&name), name, data });
+                        subjects.push(Subject {
+                            set: "mitsuba",
+                            runs: root.join("mitsuba").join(&name),
+                            name,
+                            scene: dir,
+                        });
                     }
                 }
             }
@@ -282,8 +285,7 @@ fn subjects(plan: &Plan, root: &Path) -> Vec<Subject> {
                         let _ = std::fs::remove_dir_all(&dir);
                         entry.simulate(&dir, &capture).unwrap_or_else(|e| panic!("simulating {}: {e}", entry.name));
                     }
-                    let data = read_scene(&dataset).expect("simulated scene");
-                    subjects.push(Subject { set: "ours", name: entry.name.to_string(), data, runs: dir });
+                    subjects.push(Subject { set: "ours", name: entry.name.to_string(), scene: dataset, runs: dir });
                 }
             }
             other => panic!("unknown set {other} (mitsuba, ours)"),
@@ -306,11 +308,11 @@ fn main() {
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     let mut rows = Vec::new();
     for subject in &subjects {
-        let (data, name) = (&subject.data, &subject.name);
+        let name = &subject.name;
+        let data = &read_scene(&subject.scene).unwrap_or_else(|e| panic!("{}: {e}", subject.scene.display()));
         std::fs::create_dir_all(&subject.runs).expect("bench folder");
         let log = subject.runs.parent().expect("a set folder").join("results.jsonl");
         let mut results = std::fs::OpenOptions::new().create(true).append(true).open(&log).expect("results log");
-        let gt = data.mesh.clone().expect("ground-truth mesh");
         let size = data.views.first().map_or((0, 0), |v| (v.camera.width, v.camera.height));
         for variant in &plan.variants {
             let options = options(variant, &plan);
@@ -347,7 +349,7 @@ fn main() {
                     write_mesh(trainer, &at, plan.mesh_resolution, Device::Cpu).expect("mesh during training");
                     let seconds = start.elapsed().as_secs_f64() - measuring - trained;
                     let iteration = trainer.iteration;
-                    measure(&mut results, &run, data, &gt, &at, iteration, (trained, seconds), plan.error_maps);
+                    measure(&mut results, &run, data, &at, iteration, (trained, seconds), plan.error_maps);
                     measuring = start.elapsed().as_secs_f64() - trained;
                 }
                 ControlFlow::Continue(())
@@ -356,7 +358,7 @@ fn main() {
             let outputs = start.elapsed().as_secs_f64() - measuring - trained;
             let iterations = trainer.config.iterations;
             let seconds = (trained, outputs);
-            rows.push(measure(&mut results, &run, data, &gt, &out, iterations, seconds, plan.error_maps));
+            rows.push(measure(&mut results, &run, data, &out, iterations, seconds, plan.error_maps));
         }
     }
     let mut groups: Vec<(&str, &str)> = Vec::new();

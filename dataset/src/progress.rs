@@ -44,18 +44,19 @@ pub fn progress_bar(show: bool, total: u64, what: &str) -> ProgressBar {
 /// Print `bar`'s progress as plain lines on standard error until it finishes or is dropped.
 fn log_lines(bar: WeakProgressBar, what: String) {
     std::thread::spawn(move || {
-        let (mut printed_at, mut printed_step, mut printed_permille) = (Instant::now(), 0, 0);
+        let (mut printed_at, mut printed_permille) = (Instant::now(), 0);
         loop {
             std::thread::sleep(Duration::from_millis(200));
             let Some(bar) = bar.upgrade() else { return };
             let (position, total, finished) = (bar.position(), bar.length().unwrap_or(0), bar.is_finished());
-            let step = (position * 100).checked_div(total * LOG_STEP_PERCENT).unwrap_or(0);
             let permille = (position * 1000).checked_div(total).unwrap_or(0);
+            let step = |permille: u64| permille / (LOG_STEP_PERCENT * 10);
             // A step reached less than half a step after a timed line waits for the next one.
-            let step_due = step > printed_step && permille >= printed_permille + LOG_STEP_PERCENT * 5;
+            let step_due =
+                step(permille) > step(printed_permille) && permille >= printed_permille + LOG_STEP_PERCENT * 5;
             if finished || step_due || printed_at.elapsed() >= LOG_INTERVAL {
                 eprintln!("{}", line(&what, &bar));
-                (printed_at, printed_step, printed_permille) = (Instant::now(), step, permille);
+                (printed_at, printed_permille) = (Instant::now(), permille);
             }
             if finished {
                 return;

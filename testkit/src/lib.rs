@@ -18,15 +18,24 @@ pub fn fixture(name: &str) -> PathBuf {
     dir
 }
 
+/// The scenes in `root` (its folders with `cameras.npz`), sorted.
+fn scenes_in(root: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let mut scenes = Vec::new();
+    for entry in std::fs::read_dir(root)? {
+        let path = entry?.path();
+        if path.join("cameras.npz").is_file() {
+            scenes.push(path);
+        }
+    }
+    scenes.sort();
+    Ok(scenes)
+}
+
 /// Every fixture scene (folders with `cameras.npz`), sorted; at least the spot and the bunny.
 pub fn fixture_scenes() -> Vec<PathBuf> {
     let root = fixtures_root();
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir(&root)
-        .unwrap_or_else(|e| panic!("fixtures not found at {} ({e}); set RMVP_FIXTURES", root.display()))
-        .map(|e| e.expect("readable folder").path())
-        .filter(|p| p.join("cameras.npz").is_file())
-        .collect();
-    scenes.sort();
+    let scenes = scenes_in(&root)
+        .unwrap_or_else(|e| panic!("fixtures not found at {} ({e}); set RMVP_FIXTURES", root.display()));
     assert!(scenes.len() >= 2, "expected the spot and bunny fixtures in {}", root.display());
     scenes
 }
@@ -42,15 +51,7 @@ pub fn evalset_root() -> PathBuf {
 /// Every scene rendered by Mitsuba 3 that is at hand, the evaluation set's and the fixtures'
 /// (folders with `cameras.npz`), each set sorted; empty where neither folder exists.
 pub fn mitsuba_scenes() -> Vec<PathBuf> {
-    let mut all = Vec::new();
-    for root in [evalset_root(), fixtures_root()] {
-        let Ok(entries) = std::fs::read_dir(&root) else { continue };
-        let mut scenes: Vec<PathBuf> =
-            entries.filter_map(|e| e.ok()).map(|e| e.path()).filter(|p| p.join("cameras.npz").is_file()).collect();
-        scenes.sort();
-        all.extend(scenes);
-    }
-    all
+    [evalset_root(), fixtures_root()].iter().filter_map(|root| scenes_in(root).ok()).flatten().collect()
 }
 
 /// OpenCV's chessboard photographs (`left01.jpg` ... `left14.jpg`: 13 pictures of a board of
