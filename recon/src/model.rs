@@ -4,7 +4,7 @@
 
 use crate::engine::encoding::{ide, positional_encoding, IDE_WIDTH};
 use crate::engine::{hashgrid, Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
-use crate::pbrdf::{degrees, dot, double_azimuth};
+use crate::pbrdf::{degrees, dot, double_azimuth, transmission};
 use crate::presets::Preset;
 use rmvp_dataset::rng::Rng;
 use serde::{Deserialize, Serialize};
@@ -34,6 +34,11 @@ pub struct ModelConfig {
     /// ([`Radiance::specular_polarization`]); off: NeRSP's dielectric Fresnel as it is.
     #[serde(default)]
     pub learned_polarization: bool,
+    /// Scale the diffuse lobe by its Fresnel transmission out of the surface at the view angle,
+    /// `T(n.v) / T(1)` (a dielectric's diffuse light dims towards grazing views, which a
+    /// view-independent diffuse network cannot follow); off: NeRSP's normalised diffuse.
+    #[serde(default)]
+    pub diffuse_transmission: bool,
 }
 
 /// The SDF field: point -> (SDF, features).
@@ -223,6 +228,7 @@ pub struct Radiance {
     specular: Mlp,
     features: usize,
     polarization: Option<usize>,
+    diffuse_transmission: bool,
 }
 
 fn sigmoid(x: f32) -> f32 {
@@ -238,6 +244,7 @@ impl Radiance {
             specular: Mlp::new(layout, IDE_WIDTH + 1 + f, h, d, 3, Activation::Relu, None),
             features: f,
             polarization: None,
+            diffuse_transmission: config.diffuse_transmission,
         }
     }
 
@@ -259,6 +266,17 @@ impl Radiance {
     /// model keeps NeRSP's fixed dielectric.
     pub fn learned_polarization(&self, params: &[f32]) -> Option<f32> {
         self.polarization.map(|_| self.specular_polarization(params))
+    }
+
+    /// The diffuse lobe's factor at `n . v = c` and its derivative with respect to `c`: 1 and 0
+    /// without [`ModelConfig::diffuse_transmission`], else the Fresnel transmission relative to
+    /// normal incidence ([`transmission`]).
+    fn transmission(&self, c: f32) -> (f32, f32) {
+        if self.diffuse_transmission {
+            transmission(c)
+        } else {
+            (1.0, 0.0)
+        }
     }
 
     fn init(&self, params: &mut [f32], rng: &mut Rng) {
@@ -330,10 +348,11 @@ impl Radiance {
             let nv = row3(s.normals, i);
             let ((rho_d, rho_s), _) = degrees(dot(nv, row3(s.view, i)));
             let rho_s = scale * rho_s;
+            let (t, _) = self.transmission(dot(nv, row3(s.view, i)));
             let ((c2, s2), _) = double_azimuth(nv, row3(s.frame_x, i), row3(s.frame_y, i));
             let out = &mut stokes[STOKES * i..STOKES * (i + 1)];
             for ch in 0..3 {
-                let (d, sp) = (diffuse_rgb[3 * i + ch], specular_rgb[3 * i + ch]);
+                let (d, sp) = (t * diffuse_rgb[3 * i + ch], specular_rgb[3 * i + ch]);
                 let polarized = rho_d * d - rho_s * sp;
                 out[ch] = d + sp;
                 out[3 + ch] = polarized * c2;
@@ -376,22 +395,25 @@ impl Radiance {
             let ((rho_d, fresnel_s), (drho_d, dfresnel_s)) = degrees(c);
             let (rho_s, drho_s) = (scale * fresnel_s, scale * dfresnel_s);
             let ((c2, s2), (dc2, ds2)) = double_azimuth(nv, row3(s.frame_x, i), row3(s.frame_y, i));
+            let (t, dt) = self.transmission(c);
             let g = &d_stokes[STOKES * i..STOKES * (i + 1)];
-            let (mut g_rho_d, mut g_rho_s, mut g_c2, mut g_s2) = (0.0, 0.0, 0.0, 0.0);
+            let (mut g_rho_d, mut g_rho_s, mut g_c2, mut g_s2, mut g_t) = (0.0, 0.0, 0.0, 0.0, 0.0);
             for ch in 0..3 {
-                let (d, sp) = (cache.diffuse_rgb[3 * i + ch], cache.specular_rgb[3 * i + ch]);
+                let (raw, sp) = (cache.diffuse_rgb[3 * i + ch], cache.specular_rgb[3 * i + ch]);
+                let d = t * raw;
                 let along = g[3 + ch] * c2 + g[6 + ch] * s2;
                 let polarized = rho_d * d - rho_s * sp;
                 g_rho_d += d * along;
                 g_rho_s -= sp * along;
                 g_c2 += polarized * g[3 + ch];
                 g_s2 += polarized * g[6 + ch];
-                d_diffuse_raw[3 * i + ch] = (g[ch] + rho_d * along) * d * (1.0 - d);
+                g_t += (g[ch] + rho_d * along) * raw;
+                d_diffuse_raw[3 * i + ch] = (g[ch] + rho_d * along) * t * raw * (1.0 - raw);
                 if !cache.diffuse_only {
                     d_specular_raw[3 * i + ch] = (g[ch] - rho_s * along) * sp * (1.0 - sp);
                 }
             }
-            d_cos[i] = g_rho_d * drho_d + g_rho_s * drho_s;
+            d_cos[i] = g_rho_d * drho_d + g_rho_s * drho_s + g_t * dt;
             d_scale += g_rho_s * fresnel_s;
             for k in 0..3 {
                 d_normal[3 * i + k] += g_c2 * dc2[k] + g_s2 * ds2[k];

@@ -55,6 +55,10 @@ pub struct ReconOptions {
     /// (`polarization`) and printed at the end.
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub learned_polarization: Option<bool>,
+    /// Dim the diffuse lobe by its Fresnel transmission at the view angle (relative to normal
+    /// incidence); default: the preset's (off: NeRSP's normalised diffuse).
+    #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
+    pub diffuse_transmission: Option<bool>,
     /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the
     /// intrinsics scaled); the outputs are written at the scene's size. The official code trains
     /// RMVP3D at 2 (612x512), PANDORA at 4.
@@ -92,6 +96,7 @@ impl Default for ReconOptions {
             margin: None,
             grid_level_decay: None,
             learned_polarization: None,
+            diffuse_transmission: None,
             downscale: 1,
             seed: 0,
             mesh_res: 256,
@@ -189,6 +194,9 @@ impl ReconOptions {
         }
         if let Some(learned) = self.learned_polarization {
             config.model.learned_polarization = learned;
+        }
+        if let Some(on) = self.diffuse_transmission {
+            config.model.diffuse_transmission = on;
         }
         config
     }

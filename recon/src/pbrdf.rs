@@ -43,6 +43,18 @@ pub fn degrees(c: f32) -> ((f32, f32), (f32, f32)) {
     ((rho_d, rho_s), (d_rho_d, d_rho_s))
 }
 
+/// Unpolarized Fresnel transmission out of the surface at `n . v = c` relative to normal
+/// incidence, `T(c) / T(1)` with `T = 1 - (Rs + Rp) / 2` (`c` clamped to `[MIN_COS, 1]`), and
+/// its derivative with respect to `c` (zero where clamped).
+pub fn transmission(c: f32) -> (f32, f32) {
+    let clamped = !(MIN_COS..=1.0).contains(&c);
+    let ((rs, rp), (drs, drp)) = fresnel(c.clamp(MIN_COS, 1.0));
+    let ((rs1, rp1), _) = fresnel(1.0);
+    let normal = 1.0 - 0.5 * (rs1 + rp1);
+    let t = (1.0 - 0.5 * (rs + rp)) / normal;
+    (t, if clamped { 0.0 } else { -0.5 * (drs + drp) / normal })
+}
+
 /// `(cos 2phi, sin 2phi)` of the azimuth of `n` in the frame `(fx, fy)`, and the gradient of each
 /// with respect to `n`. Zero (no polarization) when `n` is along the ray.
 pub fn double_azimuth(n: [f32; 3], fx: [f32; 3], fy: [f32; 3]) -> ((f32, f32), ([f32; 3], [f32; 3])) {
@@ -86,5 +98,25 @@ mod tests {
         // Brewster's angle: the specular reflection is fully polarized.
         let ((_, rho_b), _) = degrees(ETA.atan().cos());
         assert!((rho_b - 1.0).abs() < 1e-4, "{rho_b}");
+    }
+
+    #[test]
+    fn transmission_follows_snell_and_fresnel() {
+        // Snell's law and the Fresnel equations at 60 degrees, eta = 1.5, relative to normal
+        // incidence (R = ((eta - 1) / (eta + 1))^2 there).
+        let (ci, n) = (60f32.to_radians().cos(), ETA);
+        let ct = (1.0 - (1.0 - ci * ci) / (n * n)).sqrt();
+        let rs = ((ci - n * ct) / (ci + n * ct)).powi(2);
+        let rp = ((n * ci - ct) / (n * ci + ct)).powi(2);
+        let r0 = ((n - 1.0) / (n + 1.0)).powi(2);
+        let expected = (1.0 - 0.5 * (rs + rp)) / (1.0 - r0);
+        let (t, dt) = transmission(ci);
+        assert!((t - expected).abs() < 1e-5, "{t} {expected}");
+        assert!((transmission(1.0).0 - 1.0).abs() < 1e-6);
+        let h = 1e-3;
+        let numeric = (transmission(ci + h).0 - transmission(ci - h).0) / (2.0 * h);
+        assert!((dt - numeric).abs() < 1e-3, "{dt} {numeric}");
+        // Grazing views dim the diffuse lobe; beyond the clamp nothing changes.
+        assert!(transmission(0.1).0 < 0.75 && transmission(-0.5) == (transmission(MIN_COS).0, 0.0));
     }
 }

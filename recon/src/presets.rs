@@ -62,6 +62,7 @@ pub fn model(preset: Preset) -> ModelConfig {
             color_hidden: 256,
             color_depth: 4,
             learned_polarization: false,
+            diffuse_transmission: false,
         },
         Preset::Fast | Preset::Dense => ModelConfig {
             preset,
@@ -74,6 +75,7 @@ pub fn model(preset: Preset) -> ModelConfig {
             color_hidden: 64,
             color_depth: 2,
             learned_polarization: false,
+            diffuse_transmission: false,
         },
     }
 }

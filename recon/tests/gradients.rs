@@ -186,6 +186,7 @@ fn small_model() -> (Model, Vec<f32>) {
     config.features = 5;
     config.color_hidden = 16;
     config.learned_polarization = true;
+    config.diffuse_transmission = true;
     let model = Model::new(config);
     let mut params = model.init(11);
     // Inside its clamp, where the straight-through gradient is the derivative.
