@@ -32,7 +32,7 @@ fn changed(field: &str) -> (&'static str, &'static str) {
         "fine_samples" => ("12", "12"),
         "margin" => ("5", "5"),
         "grid_level_decay" => ("0.8", "0.8"),
-        "learned_polarization" => ("true", "true"),
+        "learned_polarization" | "diffuse_transmission" => ("true", "true"),
         "downscale" => ("2", "2"),
         "seed" => ("7", "7"),
         "mesh_res" => ("40", "40"),
