@@ -346,9 +346,10 @@ impl Radiance {
         let mut stokes = vec![0f32; STOKES * n];
         for i in 0..n {
             let nv = row3(s.normals, i);
-            let ((rho_d, rho_s), _) = degrees(dot(nv, row3(s.view, i)));
+            let c = dot(nv, row3(s.view, i));
+            let ((rho_d, rho_s), _) = degrees(c);
             let rho_s = scale * rho_s;
-            let (t, _) = self.transmission(dot(nv, row3(s.view, i)));
+            let (t, _) = self.transmission(c);
             let ((c2, s2), _) = double_azimuth(nv, row3(s.frame_x, i), row3(s.frame_y, i));
             let out = &mut stokes[STOKES * i..STOKES * (i + 1)];
             for ch in 0..3 {

@@ -49,8 +49,8 @@ pub fn degrees(c: f32) -> ((f32, f32), (f32, f32)) {
 pub fn transmission(c: f32) -> (f32, f32) {
     let clamped = !(MIN_COS..=1.0).contains(&c);
     let ((rs, rp), (drs, drp)) = fresnel(c.clamp(MIN_COS, 1.0));
-    let ((rs1, rp1), _) = fresnel(1.0);
-    let normal = 1.0 - 0.5 * (rs1 + rp1);
+    // At normal incidence Rs = Rp = ((eta - 1) / (eta + 1))^2.
+    let normal = 1.0 - ((ETA - 1.0) / (ETA + 1.0)).powi(2);
     let t = (1.0 - 0.5 * (rs + rp)) / normal;
     (t, if clamped { 0.0 } else { -0.5 * (drs + drp) / normal })
 }
