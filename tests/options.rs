@@ -32,6 +32,7 @@ fn changed(field: &str) -> (&'static str, &'static str) {
         "fine_samples" => ("12", "12"),
         "margin" => ("5", "5"),
         "grid_level_decay" => ("0.8", "0.8"),
+        "aop_reliability" => ("0.05", "0.05"),
         "learned_polarization" | "diffuse_transmission" => ("true", "true"),
         "downscale" => ("2", "2"),
         "seed" => ("7", "7"),

@@ -4,6 +4,9 @@
 //! sin(phi) y_r`; diffuse reflection puts the normal in the plane of `d` and `e` (`n . t = 0`
 //! with `t = d x e`), specular reflection in the plane of `d` and `t` (`n . e = 0`). The loss is
 //! `(n . t)^2 (n . e)^2` averaged over the views that see the point (sphere tracing the SDF).
+//! Optionally each view's term is weighted by how far its AoP can be trusted,
+//! `dop^2 / (dop^2 + r^2)` for a reliability DoP `r`: where the diffuse and specular
+//! polarizations nearly cancel, the AoP of a real (microfacet) surface strays from both planes.
 
 use crate::data::TrainingSet;
 use crate::model::Model;
@@ -18,6 +21,18 @@ pub struct Tangents {
     pub t: [f32; 3],
     /// `e`, the polarization direction (zero for specular reflection).
     pub t_hat: [f32; 3],
+    /// The view's weight in the average, in `[0, 1]`.
+    pub weight: f32,
+}
+
+/// The weight of a view whose pixel has degree of polarization `dop`, for the reliability DoP
+/// `reliability` (the DoP at half weight; 0 weights every view fully).
+pub fn aop_weight(dop: f32, reliability: f32) -> f32 {
+    if reliability <= 0.0 {
+        return 1.0;
+    }
+    let d2 = dop * dop;
+    d2 / (d2 + reliability * reliability)
 }
 
 fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
@@ -29,8 +44,8 @@ fn normalize(a: [f32; 3]) -> [f32; 3] {
     a.map(|x| x / l)
 }
 
-/// The loss `(n.t)^2 (n.t_hat)^2` averaged over `views`, and its gradient with respect to the
-/// (unnormalised) normal `n`.
+/// The loss `weight (n.t)^2 (n.t_hat)^2` averaged over `views`, and its gradient with respect
+/// to the (unnormalised) normal `n`.
 pub fn tangent_loss(n: [f32; 3], views: &[Tangents]) -> (f32, [f32; 3]) {
     if views.is_empty() {
         return (0.0, [0.0; 3]);
@@ -40,9 +55,9 @@ pub fn tangent_loss(n: [f32; 3], views: &[Tangents]) -> (f32, [f32; 3]) {
     let (mut loss, mut du) = (0f32, [0f32; 3]);
     for v in views {
         let (a, b) = (dot(u, v.t), dot(u, v.t_hat));
-        loss += a * a * b * b;
+        loss += v.weight * a * a * b * b;
         for k in 0..3 {
-            du[k] += 2.0 * a * b * b * v.t[k] + 2.0 * a * a * b * v.t_hat[k];
+            du[k] += 2.0 * v.weight * (a * b * b * v.t[k] + a * a * b * v.t_hat[k]);
         }
     }
     let m = views.len() as f32;
@@ -57,9 +72,10 @@ const VISIBILITY: TraceLimits = TraceLimits { step_scale: 1.0, max_step: f32::IN
 
 /// For each surface point (unit frame) with its outward normal, the tangents of every training
 /// view that sees it (in front of the camera, inside the image and the view's mask, facing the
-/// camera and not occluded by the SDF).
+/// camera and not occluded by the SDF), each weighted by [`aop_weight`] of its pixel's DoP.
 pub fn tangents(
     set: &TrainingSet,
+    reliability: f32,
     model: &Model,
     params: &[f32],
     level_weight: &[f32],
@@ -103,7 +119,7 @@ pub fn tangents(
                 origin: x,
                 dir: to_camera,
                 exit,
-                tangents: Tangents { t: cross(d, e), t_hat: e },
+                tangents: Tangents { t: cross(d, e), t_hat: e, weight: aop_weight(view.dop[k], reliability) },
             });
         }
     }
@@ -119,4 +135,28 @@ pub fn tangents(
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn aop_weight_is_half_at_the_reliability_dop_and_one_without_it() {
+        assert_eq!(aop_weight(0.3, 0.0), 1.0);
+        assert!((aop_weight(0.05, 0.05) - 0.5).abs() < 1e-6);
+        assert_eq!(aop_weight(0.0, 0.05), 0.0);
+        assert!((aop_weight(0.2, 0.05) - 0.04 / 0.0425).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_view_of_weight_zero_adds_nothing_to_the_sum() {
+        let n = [0.3f32, 0.5, 0.8];
+        let view = Tangents { t: [1.0, 0.0, 0.0], t_hat: [0.0, 1.0, 0.0], weight: 1.0 };
+        let ignored = Tangents { t: [0.0, 0.0, 1.0], t_hat: [0.0, 1.0, 0.0], weight: 0.0 };
+        let (alone, _) = tangent_loss(n, &[view]);
+        let (both, _) = tangent_loss(n, &[view, ignored]);
+        assert!(alone > 0.0);
+        assert!((both - alone / 2.0).abs() < 1e-7, "{both} vs {alone}");
+    }
 }

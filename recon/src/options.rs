@@ -59,6 +59,10 @@ pub struct ReconOptions {
     /// incidence); default: the preset's (off: NeRSP's normalised diffuse).
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub diffuse_transmission: Option<bool>,
+    /// Weight each view's AoP tangent term by `dop^2 / (dop^2 + R^2)` of its pixel, R the DoP at
+    /// half weight (default: the preset's, 0: every view alike, as NeRSP).
+    #[cfg_attr(feature = "clap", arg(long, value_name = "R"))]
+    pub aop_reliability: Option<f32>,
     /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the
     /// intrinsics scaled); the outputs are written at the scene's size. The official code trains
     /// RMVP3D at 2 (612x512), PANDORA at 4.
@@ -97,6 +101,7 @@ impl Default for ReconOptions {
             grid_level_decay: None,
             learned_polarization: None,
             diffuse_transmission: None,
+            aop_reliability: None,
             downscale: 1,
             seed: 0,
             mesh_res: 256,
@@ -139,6 +144,8 @@ impl ReconOptions {
             "the training downscale factor must be at least 1"
         } else if self.grid_level_decay.is_some_and(|d| !(d.is_finite() && d > 0.0)) {
             "the hash-grid levels' learning-rate decay must be a positive number"
+        } else if self.aop_reliability.is_some_and(|r| !(r.is_finite() && r >= 0.0)) {
+            "the AoP's reliability DoP must be a number of at least 0"
         } else {
             return Ok(());
         };
@@ -197,6 +204,9 @@ impl ReconOptions {
         }
         if let Some(on) = self.diffuse_transmission {
             config.model.diffuse_transmission = on;
+        }
+        if let Some(reliability) = self.aop_reliability {
+            config.aop_reliability = reliability;
         }
         config
     }

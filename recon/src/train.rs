@@ -42,6 +42,10 @@ pub struct TrainConfig {
     pub photometric: bool,
     /// Use the geometric cue (off: PANDORA-like, photometric only).
     pub geometric: bool,
+    /// The DoP at which a view's geometric term has half its weight (`dop^2 / (dop^2 + r^2)`);
+    /// 0 weights every view that sees a point alike (NeRSP).
+    #[serde(default)]
+    pub aop_reliability: f32,
     /// Initial iterations with the diffuse lobe and S0 only, no geometric loss.
     pub diffuse_only: u32,
     /// Dilation of the masks that object rays are drawn from, pixels.
@@ -310,7 +314,8 @@ impl Trainer {
         if use_geometric && !surface.is_empty() {
             let points: Vec<[f32; 3]> = surface.iter().map(|s| s.1).collect();
             let normals: Vec<[f32; 3]> = surface.iter().map(|s| s.2).collect();
-            let views = tangents(set, &self.model, &self.params, level_weight, &points, &normals);
+            let views =
+                tangents(set, self.config.aop_reliability, &self.model, &self.params, level_weight, &points, &normals);
             for ((r, _, n), ts) in surface.iter().zip(&views) {
                 let (loss, dn) = tangent_loss(*n, ts);
                 sums.losses[Term::Geometric] += loss as f64 / norm.masked as f64;

@@ -340,8 +340,8 @@ fn losses() {
     let g = [0.3f32, -1.2, 0.5];
     let n = [0.4f32, 0.8, -0.3];
     let views = [
-        Tangents { t: [0.6, 0.0, 0.8], t_hat: [0.0, 1.0, 0.0] },
-        Tangents { t: [0.0, 0.6, -0.8], t_hat: [1.0, 0.0, 0.0] },
+        Tangents { t: [0.6, 0.0, 0.8], t_hat: [0.0, 1.0, 0.0], weight: 1.0 },
+        Tangents { t: [0.0, 0.6, -0.8], t_hat: [1.0, 0.0, 0.0], weight: 0.5 },
     ];
     let (_, dg) = eikonal(g);
     let (_, dn) = tangent_loss(n, &views);
