@@ -79,8 +79,6 @@ pub struct TrainView {
     pub mask: Vec<bool>,
     /// AoP (radians, per-ray frame).
     pub aop: Vec<f32>,
-    /// DoP of each pixel's channel-mean Stokes vector: how far its AoP can be trusted.
-    pub dop: Vec<f32>,
 }
 
 impl TrainView {
@@ -138,10 +136,9 @@ impl TrainingSet {
             {
                 return Err(Error::NonFiniteInput { view: view.name.clone(), x, y, channel });
             }
-            let (computed_aop, dop) = stokes.aop_dop();
             let aop = match &view.aop {
                 Some(a) => a.data().to_vec(),
-                None => computed_aop.into_vec(),
+                None => stokes.aop_dop().0.into_vec(),
             };
             let mut target = Vec::with_capacity(9 * w * h);
             for k in 0..w * h {
@@ -157,7 +154,6 @@ impl TrainingSet {
                 stokes: target,
                 mask: mask.data().iter().map(|&m| m > 127).collect(),
                 aop,
-                dop: dop.into_vec(),
             });
         }
         if views.is_empty() {
