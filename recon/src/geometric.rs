@@ -8,11 +8,12 @@
 //! `dop^2 / (dop^2 + r^2)` for a reliability DoP `r`: where the diffuse and specular
 //! polarizations nearly cancel, the AoP of a real (microfacet) surface strays from both planes.
 
-use crate::data::TrainingSet;
+use crate::data::{TrainView, TrainingSet};
 use crate::model::Model;
 use crate::pbrdf::dot;
 use crate::trace::{sphere_trace, TraceLimits, TraceRay};
 use crate::volume::unit_sphere_span;
+use rmvp_dataset::polarization;
 
 /// The two tangent directions one view gives at a surface point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -35,6 +36,14 @@ pub fn aop_weight(dop: f32, reliability: f32) -> f32 {
     d2 / (d2 + reliability * reliability)
 }
 
+/// DoP of pixel `k`'s channel-mean Stokes target, as its AoP is taken (the targets' common
+/// scale cancels).
+fn pixel_dop(view: &TrainView, k: usize) -> f32 {
+    let stokes = &view.stokes[9 * k..9 * k + 9];
+    let mean = |s: usize| stokes[3 * s..3 * s + 3].iter().sum::<f32>() / 3.0;
+    polarization::dop(mean(0), mean(1), mean(2))
+}
+
 fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
@@ -45,8 +54,9 @@ fn normalize(a: [f32; 3]) -> [f32; 3] {
 }
 
 /// The loss `weight (n.t)^2 (n.t_hat)^2` averaged over `views`, and its gradient with respect
-/// to the (unnormalised) normal `n`.
-pub fn tangent_loss(n: [f32; 3], views: &[Tangents]) -> (f32, [f32; 3]) {
+/// to the (unnormalised) normal `n`. With `azimuth_only`, each view's gradient keeps only its
+/// component that turns `n` about the view's ray.
+pub fn tangent_loss(n: [f32; 3], views: &[Tangents], azimuth_only: bool) -> (f32, [f32; 3]) {
     if views.is_empty() {
         return (0.0, [0.0; 3]);
     }
@@ -56,8 +66,22 @@ pub fn tangent_loss(n: [f32; 3], views: &[Tangents]) -> (f32, [f32; 3]) {
     for v in views {
         let (a, b) = (dot(u, v.t), dot(u, v.t_hat));
         loss += v.weight * a * a * b * b;
+        let g = [0, 1, 2].map(|k| 2.0 * v.weight * (a * b * b * v.t[k] + a * a * b * v.t_hat[k]));
+        let g = if azimuth_only {
+            // The ray is t_hat x t; turning u about it moves it along ray x u.
+            let turn = cross(cross(v.t_hat, v.t), u);
+            let q = dot(turn, turn);
+            if q < 1e-12 {
+                [0.0; 3]
+            } else {
+                let along = dot(g, turn) / q;
+                turn.map(|x| along * x)
+            }
+        } else {
+            g
+        };
         for k in 0..3 {
-            du[k] += 2.0 * v.weight * (a * b * b * v.t[k] + a * a * b * v.t_hat[k]);
+            du[k] += g[k];
         }
     }
     let m = views.len() as f32;
@@ -119,7 +143,7 @@ pub fn tangents(
                 origin: x,
                 dir: to_camera,
                 exit,
-                tangents: Tangents { t: cross(d, e), t_hat: e, weight: aop_weight(view.dop[k], reliability) },
+                tangents: Tangents { t: cross(d, e), t_hat: e, weight: aop_weight(pixel_dop(view, k), reliability) },
             });
         }
     }
@@ -149,13 +173,58 @@ mod tests {
         assert!((aop_weight(0.2, 0.05) - 0.04 / 0.0425).abs() < 1e-6);
     }
 
+    /// The tangents of a view along `d` whose AoP points along `e` (both unit, `e` across `d`).
+    fn view(d: [f32; 3], e: [f32; 3]) -> Tangents {
+        Tangents { t: cross(d, e), t_hat: e, weight: 1.0 }
+    }
+
+    #[test]
+    fn the_azimuthal_gradient_turns_the_normal_about_the_ray_and_matches_the_loss() {
+        let d = normalize([0.2, -0.1, 1.0]);
+        let e = normalize(cross(d, [0.3, 1.0, 0.1]));
+        let n = normalize([0.5, 0.4, -0.6]);
+        let (_, full) = tangent_loss(n, &[view(d, e)], false);
+        let (_, turning) = tangent_loss(n, &[view(d, e)], true);
+        // No part of it tilts the normal towards or away from the ray.
+        assert!(dot(turning, d).abs() < 1e-6 && dot(turning, n).abs() < 1e-6, "{turning:?}");
+        assert!(dot(full, d).abs() > 1e-3, "the full gradient tilts the normal here: {full:?}");
+        // Along the turn about the ray, it is the loss's derivative.
+        let axis = d;
+        let turn = |angle: f32| {
+            // Rodrigues' rotation of n about the ray.
+            let (s, c) = angle.sin_cos();
+            let k = cross(axis, n);
+            let along = dot(axis, n) * (1.0 - c);
+            [0, 1, 2].map(|i| n[i] * c + k[i] * s + axis[i] * along)
+        };
+        let h = 1e-2;
+        let numeric = (tangent_loss(turn(h), &[view(d, e)], true).0 - tangent_loss(turn(-h), &[view(d, e)], true).0)
+            / (2.0 * h);
+        let analytic = dot(turning, cross(axis, n));
+        assert!((numeric - analytic).abs() < 1e-2 * analytic.abs() && analytic.abs() > 1e-3, "{numeric} vs {analytic}");
+    }
+
+    #[test]
+    fn an_aop_that_says_nothing_pulls_the_normal_nowhere_when_it_turns_it_only() {
+        // One view's AoP at evenly spread angles: the mean of what a uniformly random AoP does.
+        let d = [0.0, 0.0, 1.0];
+        let views: Vec<Tangents> =
+            (0..16).map(|i| (i as f32 + 0.37) * std::f32::consts::PI / 16.0).map(|a| view(d, [a.cos(), a.sin(), 0.0])).collect();
+        let n = normalize([0.6, 0.2, -0.7]);
+        let (_, full) = tangent_loss(n, &views, false);
+        let (_, turning) = tangent_loss(n, &views, true);
+        // NeRSP's gradient descends towards the camera (at -d): n.d falls.
+        assert!(dot(full, d) > 1e-2, "{full:?}");
+        assert!(turning.iter().all(|g| g.abs() < 1e-6), "{turning:?}");
+    }
+
     #[test]
     fn a_view_of_weight_zero_adds_nothing_to_the_sum() {
         let n = [0.3f32, 0.5, 0.8];
         let view = Tangents { t: [1.0, 0.0, 0.0], t_hat: [0.0, 1.0, 0.0], weight: 1.0 };
         let ignored = Tangents { t: [0.0, 0.0, 1.0], t_hat: [0.0, 1.0, 0.0], weight: 0.0 };
-        let (alone, _) = tangent_loss(n, &[view]);
-        let (both, _) = tangent_loss(n, &[view, ignored]);
+        let (alone, _) = tangent_loss(n, &[view], false);
+        let (both, _) = tangent_loss(n, &[view, ignored], false);
         assert!(alone > 0.0);
         assert!((both - alone / 2.0).abs() < 1e-7, "{both} vs {alone}");
     }

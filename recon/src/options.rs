@@ -63,6 +63,9 @@ pub struct ReconOptions {
     /// half weight (default: the preset's, 0: every view alike, as NeRSP).
     #[cfg_attr(feature = "clap", arg(long, value_name = "R"))]
     pub aop_reliability: Option<f32>,
+    /// Let the AoP tangent loss turn normals about the views' rays only.
+    #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
+    pub tangent_azimuth_only: Option<bool>,
     /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the
     /// intrinsics scaled); the outputs are written at the scene's size. The official code trains
     /// RMVP3D at 2 (612x512), PANDORA at 4.
@@ -102,6 +105,7 @@ impl Default for ReconOptions {
             learned_polarization: None,
             diffuse_transmission: None,
             aop_reliability: None,
+            tangent_azimuth_only: None,
             downscale: 1,
             seed: 0,
             mesh_res: 256,
@@ -207,6 +211,9 @@ impl ReconOptions {
         }
         if let Some(reliability) = self.aop_reliability {
             config.aop_reliability = reliability;
+        }
+        if let Some(on) = self.tangent_azimuth_only {
+            config.tangent_azimuth_only = on;
         }
         config
     }

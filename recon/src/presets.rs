@@ -127,6 +127,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         photometric: true,
         geometric: true,
         aop_reliability: 0.0,
+        tangent_azimuth_only: false,
         diffuse_only: 1000.min(iterations / 10),
         margin: 8,
         background_share: BACKGROUND_SHARE,

@@ -46,6 +46,10 @@ pub struct TrainConfig {
     /// 0 weights every view that sees a point alike (NeRSP).
     #[serde(default)]
     pub aop_reliability: f32,
+    /// The geometric loss turns each normal about the rays of the views only (its gradient's
+    /// azimuthal part); off: NeRSP's full gradient, which also tilts normals towards cameras.
+    #[serde(default)]
+    pub tangent_azimuth_only: bool,
     /// Initial iterations with the diffuse lobe and S0 only, no geometric loss.
     pub diffuse_only: u32,
     /// Dilation of the masks that object rays are drawn from, pixels.
@@ -317,7 +321,7 @@ impl Trainer {
             let views =
                 tangents(set, self.config.aop_reliability, &self.model, &self.params, level_weight, &points, &normals);
             for ((r, _, n), ts) in surface.iter().zip(&views) {
-                let (loss, dn) = tangent_loss(*n, ts);
+                let (loss, dn) = tangent_loss(*n, ts, self.config.tangent_azimuth_only);
                 sums.losses[Term::Geometric] += loss as f64 / norm.masked as f64;
                 grads[*r].normal = dn.map(|d| d * w[Term::Geometric] / norm.masked);
             }
