@@ -198,8 +198,8 @@ mod tests {
             [0, 1, 2].map(|i| n[i] * c + k[i] * s + axis[i] * along)
         };
         let h = 1e-2;
-        let numeric = (tangent_loss(turn(h), &[view(d, e)], true).0 - tangent_loss(turn(-h), &[view(d, e)], true).0)
-            / (2.0 * h);
+        let numeric =
+            (tangent_loss(turn(h), &[view(d, e)], true).0 - tangent_loss(turn(-h), &[view(d, e)], true).0) / (2.0 * h);
         let analytic = dot(turning, cross(axis, n));
         assert!((numeric - analytic).abs() < 1e-2 * analytic.abs() && analytic.abs() > 1e-3, "{numeric} vs {analytic}");
     }
@@ -208,8 +208,10 @@ mod tests {
     fn an_aop_that_says_nothing_pulls_the_normal_nowhere_when_it_turns_it_only() {
         // One view's AoP at evenly spread angles: the mean of what a uniformly random AoP does.
         let d = [0.0, 0.0, 1.0];
-        let views: Vec<Tangents> =
-            (0..16).map(|i| (i as f32 + 0.37) * std::f32::consts::PI / 16.0).map(|a| view(d, [a.cos(), a.sin(), 0.0])).collect();
+        let views: Vec<Tangents> = (0..16)
+            .map(|i| (i as f32 + 0.37) * std::f32::consts::PI / 16.0)
+            .map(|a| view(d, [a.cos(), a.sin(), 0.0]))
+            .collect();
         let n = normalize([0.6, 0.2, -0.7]);
         let (_, full) = tangent_loss(n, &views, false);
         let (_, turning) = tangent_loss(n, &views, true);
