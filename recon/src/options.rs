@@ -56,14 +56,17 @@ pub struct ReconOptions {
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub learned_polarization: Option<bool>,
     /// Dim the diffuse lobe by its Fresnel transmission at the view angle (relative to normal
-    /// incidence); default: the preset's (off: NeRSP's normalised diffuse).
+    /// incidence); default: the preset's (on in fast and dense; off in paper, NeRSP's
+    /// normalised diffuse).
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub diffuse_transmission: Option<bool>,
     /// Weight each view's AoP tangent term by `dop^2 / (dop^2 + R^2)` of its pixel, R the DoP at
     /// half weight (default: the preset's, 0: every view alike, as NeRSP).
     #[cfg_attr(feature = "clap", arg(long, value_name = "R"))]
     pub aop_reliability: Option<f32>,
-    /// Let the AoP tangent loss turn normals about the views' rays only.
+    /// Let the AoP tangent loss turn normals about the views' rays only, never tilt them towards
+    /// a camera; default: the preset's (on in fast and dense; off in paper, NeRSP's full
+    /// gradient).
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub tangent_azimuth_only: Option<bool>,
     /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the
