@@ -33,6 +33,7 @@ fn changed(field: &str) -> (&'static str, &'static str) {
         "margin" => ("5", "5"),
         "grid_level_decay" => ("0.8", "0.8"),
         "aop_reliability" => ("0.05", "0.05"),
+        "tangent_robust_angle" => ("10", "10.0"),
         "learned_polarization" | "diffuse_transmission" | "tangent_azimuth_only" => ("true", "true"),
         "downscale" => ("2", "2"),
         "seed" => ("7", "7"),

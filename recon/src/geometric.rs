@@ -53,10 +53,19 @@ fn normalize(a: [f32; 3]) -> [f32; 3] {
     a.map(|x| x / l)
 }
 
-/// The loss `weight (n.t)^2 (n.t_hat)^2` averaged over `views`, and its gradient with respect
-/// to the (unnormalised) normal `n`. With `azimuth_only`, each view's gradient keeps only its
-/// component that turns `n` about the view's ray.
-pub fn tangent_loss(n: [f32; 3], views: &[Tangents], azimuth_only: bool) -> (f32, [f32; 3]) {
+/// The scale `c` of the robust tangent term for an AoP `angle` degrees away from both of a
+/// normal's planes (the normal across the ray): the plain term there, `sin^2(2 angle) / 4`;
+/// 0 for an angle of 0 (no robust term).
+pub fn robust_scale(angle: f32) -> f32 {
+    (2.0 * angle.to_radians()).sin().powi(2) / 4.0
+}
+
+/// The loss `weight rho((n.t)^2 (n.t_hat)^2)` averaged over `views`, and its gradient with
+/// respect to the (unnormalised) normal `n`; `rho(l) = l` for a `robust` scale of 0, else
+/// Geman-McClure's `c l / (l + c)`, which weighs a view whose AoP strays far from the normal's
+/// planes less. With `azimuth_only`, each view's gradient keeps only its component that turns
+/// `n` about the view's ray.
+pub fn tangent_loss(n: [f32; 3], views: &[Tangents], azimuth_only: bool, robust: f32) -> (f32, [f32; 3]) {
     if views.is_empty() {
         return (0.0, [0.0; 3]);
     }
@@ -65,8 +74,15 @@ pub fn tangent_loss(n: [f32; 3], views: &[Tangents], azimuth_only: bool) -> (f32
     let (mut loss, mut du) = (0f32, [0f32; 3]);
     for v in views {
         let (a, b) = (dot(u, v.t), dot(u, v.t_hat));
-        loss += v.weight * a * a * b * b;
-        let g = [0, 1, 2].map(|k| 2.0 * v.weight * (a * b * b * v.t[k] + a * a * b * v.t_hat[k]));
+        let plain = a * a * b * b;
+        let (term, slope) = if robust > 0.0 {
+            (robust * plain / (plain + robust), (robust / (plain + robust)).powi(2))
+        } else {
+            (plain, 1.0)
+        };
+        loss += v.weight * term;
+        let scale = 2.0 * v.weight * slope;
+        let g = [0, 1, 2].map(|k| scale * (a * b * b * v.t[k] + a * a * b * v.t_hat[k]));
         let g = if azimuth_only {
             // The ray is t_hat x t; turning u about it moves it along ray x u.
             let turn = cross(cross(v.t_hat, v.t), u);
@@ -183,8 +199,8 @@ mod tests {
         let d = normalize([0.2, -0.1, 1.0]);
         let e = normalize(cross(d, [0.3, 1.0, 0.1]));
         let n = normalize([0.5, 0.4, -0.6]);
-        let (_, full) = tangent_loss(n, &[view(d, e)], false);
-        let (_, turning) = tangent_loss(n, &[view(d, e)], true);
+        let (_, full) = tangent_loss(n, &[view(d, e)], false, 0.0);
+        let (_, turning) = tangent_loss(n, &[view(d, e)], true, 0.0);
         // No part of it tilts the normal towards or away from the ray.
         assert!(dot(turning, d).abs() < 1e-6 && dot(turning, n).abs() < 1e-6, "{turning:?}");
         assert!(dot(full, d).abs() > 1e-3, "the full gradient tilts the normal here: {full:?}");
@@ -198,8 +214,9 @@ mod tests {
             [0, 1, 2].map(|i| n[i] * c + k[i] * s + axis[i] * along)
         };
         let h = 1e-2;
-        let numeric =
-            (tangent_loss(turn(h), &[view(d, e)], true).0 - tangent_loss(turn(-h), &[view(d, e)], true).0) / (2.0 * h);
+        let numeric = (tangent_loss(turn(h), &[view(d, e)], true, 0.0).0
+            - tangent_loss(turn(-h), &[view(d, e)], true, 0.0).0)
+            / (2.0 * h);
         let analytic = dot(turning, cross(axis, n));
         assert!((numeric - analytic).abs() < 1e-2 * analytic.abs() && analytic.abs() > 1e-3, "{numeric} vs {analytic}");
     }
@@ -213,8 +230,8 @@ mod tests {
             .map(|a| view(d, [a.cos(), a.sin(), 0.0]))
             .collect();
         let n = normalize([0.6, 0.2, -0.7]);
-        let (_, full) = tangent_loss(n, &views, false);
-        let (_, turning) = tangent_loss(n, &views, true);
+        let (_, full) = tangent_loss(n, &views, false, 0.0);
+        let (_, turning) = tangent_loss(n, &views, true, 0.0);
         // NeRSP's gradient descends towards the camera (at -d): n.d falls.
         assert!(dot(full, d) > 1e-2, "{full:?}");
         assert!(turning.iter().all(|g| g.abs() < 1e-6), "{turning:?}");
@@ -225,9 +242,46 @@ mod tests {
         let n = [0.3f32, 0.5, 0.8];
         let view = Tangents { t: [1.0, 0.0, 0.0], t_hat: [0.0, 1.0, 0.0], weight: 1.0 };
         let ignored = Tangents { t: [0.0, 0.0, 1.0], t_hat: [0.0, 1.0, 0.0], weight: 0.0 };
-        let (alone, _) = tangent_loss(n, &[view], false);
-        let (both, _) = tangent_loss(n, &[view, ignored], false);
+        let (alone, _) = tangent_loss(n, &[view], false, 0.0);
+        let (both, _) = tangent_loss(n, &[view, ignored], false, 0.0);
         assert!(alone > 0.0);
         assert!((both - alone / 2.0).abs() < 1e-7, "{both} vs {alone}");
+    }
+
+    #[test]
+    fn the_robust_term_is_the_plain_one_near_the_planes_and_flattens_beyond_its_angle() {
+        // A view along z whose AoP points along x; a normal across the ray at azimuth `delta`.
+        let d = [0.0, 0.0, 1.0];
+        let views = [view(d, [1.0, 0.0, 0.0])];
+        let at = |delta: f32| [delta.cos(), delta.sin(), 0.0];
+        let c = robust_scale(10.0);
+        // The plain term at the robust angle is its scale.
+        let (plain, _) = tangent_loss(at(10f32.to_radians()), &views, true, 0.0);
+        assert!((plain - c).abs() < 1e-6, "{plain} vs {c}");
+        assert_eq!(robust_scale(0.0), 0.0);
+        for degrees in [0.5f32, 10.0, 30.0] {
+            let delta = degrees.to_radians();
+            let (plain, plain_grad) = tangent_loss(at(delta), &views, true, 0.0);
+            let (robust, robust_grad) = tangent_loss(at(delta), &views, true, c);
+            assert!((robust - c * plain / (plain + c)).abs() < 1e-7, "{degrees}: {robust}");
+            // Its derivative along the turn, against central differences.
+            let h = 1e-3;
+            let numeric = (tangent_loss(at(delta + h), &views, true, c).0
+                - tangent_loss(at(delta - h), &views, true, c).0)
+                / (2.0 * h);
+            let analytic = dot(robust_grad, [-delta.sin(), delta.cos(), 0.0]);
+            assert!((numeric - analytic).abs() < 2e-2 * analytic.abs(), "{degrees}: {numeric} vs {analytic}");
+            let ratio = dot(robust_grad, robust_grad).sqrt() / dot(plain_grad, plain_grad).sqrt();
+            let expected = (c / (plain + c)).powi(2);
+            assert!((ratio - expected).abs() < 1e-4, "{degrees}: {ratio} vs {expected}");
+        }
+        // Near the planes the pull is the plain one; at the angle a quarter; at 30 degrees
+        // (a stray AoP) under a twentieth.
+        let ratio = |degrees: f32| {
+            let delta = degrees.to_radians();
+            let norm = |g: [f32; 3]| dot(g, g).sqrt();
+            norm(tangent_loss(at(delta), &views, true, c).1) / norm(tangent_loss(at(delta), &views, true, 0.0).1)
+        };
+        assert!(ratio(0.5) > 0.99 && (ratio(10.0) - 0.25).abs() < 1e-3 && ratio(30.0) < 0.05);
     }
 }

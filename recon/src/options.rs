@@ -69,6 +69,11 @@ pub struct ReconOptions {
     /// gradient).
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub tangent_azimuth_only: Option<bool>,
+    /// Make each view's AoP tangent term robust: a view whose AoP strays more than about this
+    /// many degrees from both of the normal's planes pulls less and less (Geman-McClure);
+    /// default: the preset's (0: NeRSP's plain term).
+    #[cfg_attr(feature = "clap", arg(long, value_name = "DEGREES"))]
+    pub tangent_robust_angle: Option<f32>,
     /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the
     /// intrinsics scaled); the outputs are written at the scene's size. The official code trains
     /// RMVP3D at 2 (612x512), PANDORA at 4.
@@ -109,6 +114,7 @@ impl Default for ReconOptions {
             diffuse_transmission: None,
             aop_reliability: None,
             tangent_azimuth_only: None,
+            tangent_robust_angle: None,
             downscale: 1,
             seed: 0,
             mesh_res: 256,
@@ -153,6 +159,8 @@ impl ReconOptions {
             "the hash-grid levels' learning-rate decay must be a positive number"
         } else if self.aop_reliability.is_some_and(|r| !(r.is_finite() && r >= 0.0)) {
             "the AoP's reliability DoP must be a number of at least 0"
+        } else if self.tangent_robust_angle.is_some_and(|a| !(a.is_finite() && (0.0..=45.0).contains(&a))) {
+            "the tangent term's robust angle must be a number of degrees from 0 to 45"
         } else {
             return Ok(());
         };
@@ -217,6 +225,9 @@ impl ReconOptions {
         }
         if let Some(on) = self.tangent_azimuth_only {
             config.tangent_azimuth_only = on;
+        }
+        if let Some(angle) = self.tangent_robust_angle {
+            config.tangent_robust_angle = angle;
         }
         config
     }

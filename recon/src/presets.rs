@@ -132,6 +132,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         // NeRSP's full gradient also tilts normals towards the cameras wherever an AoP strays
         // from the normal's planes (docs/reconstruction.md).
         tangent_azimuth_only: preset != Preset::Paper,
+        tangent_robust_angle: 0.0,
         diffuse_only: 1000.min(iterations / 10),
         margin: 8,
         background_share: BACKGROUND_SHARE,

@@ -7,7 +7,7 @@
 
 use crate::data::TrainingSet;
 use crate::engine::{Adam, AdamConfig};
-use crate::geometric::{tangent_loss, tangents};
+use crate::geometric::{robust_scale, tangent_loss, tangents};
 use crate::losses::{curvature, eikonal, l1, mask_bce, PerTerm, Term};
 use crate::model::{GridGradient, Model, ModelConfig, STOKES};
 use crate::options::ReconOptions;
@@ -50,6 +50,10 @@ pub struct TrainConfig {
     /// azimuthal part); off: NeRSP's full gradient, which also tilts normals towards cameras.
     #[serde(default)]
     pub tangent_azimuth_only: bool,
+    /// The AoP's distance from a normal's planes, degrees, beyond which a view's geometric term
+    /// stops growing (Geman-McClure on the term); 0 keeps NeRSP's plain term.
+    #[serde(default)]
+    pub tangent_robust_angle: f32,
     /// Initial iterations with the diffuse lobe and S0 only, no geometric loss.
     pub diffuse_only: u32,
     /// Dilation of the masks that object rays are drawn from, pixels.
@@ -320,8 +324,9 @@ impl Trainer {
             let normals: Vec<[f32; 3]> = surface.iter().map(|s| s.2).collect();
             let views =
                 tangents(set, self.config.aop_reliability, &self.model, &self.params, level_weight, &points, &normals);
+            let robust = robust_scale(self.config.tangent_robust_angle);
             for ((r, _, n), ts) in surface.iter().zip(&views) {
-                let (loss, dn) = tangent_loss(*n, ts, self.config.tangent_azimuth_only);
+                let (loss, dn) = tangent_loss(*n, ts, self.config.tangent_azimuth_only, robust);
                 sums.losses[Term::Geometric] += loss as f64 / norm.masked as f64;
                 grads[*r].normal = dn.map(|d| d * w[Term::Geometric] / norm.masked);
             }

@@ -344,7 +344,7 @@ fn losses() {
         Tangents { t: [0.0, 0.6, -0.8], t_hat: [1.0, 0.0, 0.0], weight: 0.5 },
     ];
     let (_, dg) = eikonal(g);
-    let (_, dn) = tangent_loss(n, &views, false);
+    let (_, dn) = tangent_loss(n, &views, false, 0.0);
     for a in 0..3 {
         let (mut up, mut down) = (g, g);
         up[a] += eps;
@@ -354,7 +354,7 @@ fn losses() {
         let (mut up, mut down) = (n, n);
         up[a] += eps;
         down[a] -= eps;
-        let numeric = (tangent_loss(up, &views, false).0 - tangent_loss(down, &views, false).0) / (2.0 * eps);
+        let numeric = (tangent_loss(up, &views, false, 0.0).0 - tangent_loss(down, &views, false, 0.0).0) / (2.0 * eps);
         assert!((numeric - dn[a]).abs() < 1e-3, "tangent loss d/dn{a}: {numeric} vs {}", dn[a]);
     }
     assert!(dn.iter().any(|v| v.abs() > 1e-2), "the tangent check must not be empty");
