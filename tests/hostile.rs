@@ -258,6 +258,11 @@ fn plans_with_impossible_values_loops_or_too_many_tasks_are_refused_at_plan_time
         ("options = { iters = 0 }\n", 3, "the number of iterations must be at least 1"),
         ("options = { mesh_res = 0 }\n", 3, "the mesh resolution (marching grid cells per axis) must be at least 1"),
         ("options = { batch = 0 }\n", 3, "the rays per iteration (batch) must be at least 1"),
+        (
+            "options = { tangent_robust_angle = 60.0 }\n",
+            3,
+            "the tangent term's robust angle must be a number of degrees from 0 to 45",
+        ),
         ("\n[evaluation]\nthreshold = nan\n", 0, "[evaluation] threshold must be a finite positive distance, not NaN"),
         ("\n[evaluation]\nmax_samples = 0\n", 0, "[evaluation] max_samples must be at least 1"),
     ] {
