@@ -11,7 +11,10 @@ be, 22.5 on average for a random AoP), and prints the share of pixels, the resid
 share that reads as specular, bin by bin of DoP.
 
     rmvp dataset render-normals SCENE --mesh SCENE/gt/mesh.ply -o NORMALS
-    bench/aop_residuals.py SCENE NORMALS
+    bench/aop_residuals.py SCENE NORMALS [K]
+
+With K, S1 and S2 are first averaged over K x K pixels inside the mask: if the residual were
+pixel noise, it would fall.
 
 Needs numpy and OpenCV (`scripts/install-system-deps.sh bench`).
 """
@@ -25,11 +28,20 @@ import numpy as np
 DOP_BINS = [0.0, 0.01, 0.02, 0.05, 0.1, 0.2, 1.01]
 
 
-def view_residuals(scene, normals, index, camera):
-    """Residual (degrees), DoP and specular-type flag of one view's interior pixels."""
+def masked_average(image, mask, size):
+    """`image` averaged over `size` x `size` pixels, counting only those inside `mask`."""
+    inside = mask.astype(np.float64)
+    return cv2.blur(image * inside, (size, size)) / np.maximum(cv2.blur(inside, (size, size)), 1e-9)
+
+
+def view_residuals(scene, normals, index, camera, average=1):
+    """Residual (degrees), DoP and specular-type flag of one view's interior pixels, S1 and S2
+    averaged over `average` x `average` pixels first."""
     K, R = np.array(camera["K"]), np.array(camera["R"])
-    s0, s1, s2 = (np.load(f"{scene}/s{k}/{index:04d}.npy").mean(axis=2) for k in range(3))
+    s0, s1, s2 = (np.load(f"{scene}/s{k}/{index:04d}.npy").mean(axis=2).astype(np.float64) for k in range(3))
     mask = cv2.imread(f"{scene}/mask/{index:04d}.png", cv2.IMREAD_GRAYSCALE) > 127
+    if average > 1:
+        s1, s2 = (masked_average(s, mask, average) for s in (s1, s2))
     true_mask = cv2.imread(f"{normals}/{camera['name']}_mask.png", cv2.IMREAD_GRAYSCALE) > 127
     encoded = cv2.imread(f"{normals}/{camera['name']}_normal.png", cv2.IMREAD_UNCHANGED)
     normal_world = encoded[:, :, ::-1].astype(np.float64) / 255 * 2 - 1
@@ -56,11 +68,12 @@ def view_residuals(scene, normals, index, camera):
 
 
 def main():
-    if len(sys.argv) != 3:
+    if len(sys.argv) not in (3, 4):
         sys.exit(__doc__)
-    scene, normals = sys.argv[1:]
+    scene, normals = sys.argv[1:3]
+    average = int(sys.argv[3]) if len(sys.argv) == 4 else 1
     cameras = json.load(open(f"{scene}/gt/cameras.json"))["cameras"]
-    parts = [view_residuals(scene, normals, i, c) for i, c in enumerate(cameras) if c["split"] == "train"]
+    parts = [view_residuals(scene, normals, i, c, average) for i, c in enumerate(cameras) if c["split"] == "train"]
     residual, dop, specular = (np.concatenate(p) for p in zip(*parts))
     print(f"{scene}: {len(residual)} pixels, residual median {np.median(residual):.2f} deg")
     print("| DoP | pixels | residual median | mean | over 15 deg | specular-type |")
