@@ -34,14 +34,13 @@ def masked_average(image, mask, size):
     return cv2.blur(image * inside, (size, size)) / np.maximum(cv2.blur(inside, (size, size)), 1e-9)
 
 
-def view_residuals(scene, normals, index, camera, average=1):
-    """Residual (degrees), DoP and specular-type flag of one view's interior pixels, S1 and S2
-    averaged over `average` x `average` pixels first."""
-    K, R = np.array(camera["K"]), np.array(camera["R"])
+def view_geometry(scene, normals, index, camera):
+    """One training view's channel-mean Stokes images, its interior pixels (inside the scene's
+    and the true mask, eroded by two pixels), each pixel's ray `d`, Stokes frame `(x_r, y_r)`
+    and true normal `n`, all in the camera frame."""
+    K = np.array(camera["K"])
     s0, s1, s2 = (np.load(f"{scene}/s{k}/{index:04d}.npy").mean(axis=2).astype(np.float64) for k in range(3))
     mask = cv2.imread(f"{scene}/mask/{index:04d}.png", cv2.IMREAD_GRAYSCALE) > 127
-    if average > 1:
-        s1, s2 = (masked_average(s, mask, average) for s in (s1, s2))
     true_mask = cv2.imread(f"{normals}/{camera['name']}_mask.png", cv2.IMREAD_GRAYSCALE) > 127
     encoded = cv2.imread(f"{normals}/{camera['name']}_normal.png", cv2.IMREAD_UNCHANGED)
     normal_world = encoded[:, :, ::-1].astype(np.float64) / 255 * 2 - 1
@@ -54,17 +53,33 @@ def view_residuals(scene, normals, index, camera, average=1):
     x_r = np.array([1.0, 0.0, 0.0]) - d[..., :1] * d
     x_r /= np.linalg.norm(x_r, axis=-1, keepdims=True)
     y_r = np.cross(d, x_r)
-    n = normal_world @ R.T
+    n = normal_world @ np.array(camera["R"]).T
     n /= np.linalg.norm(n, axis=-1, keepdims=True) + 1e-12
-    azimuth = np.arctan2((n * y_r).sum(-1), (n * x_r).sum(-1))
+    interior = cv2.erode((mask & true_mask).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    return dict(s0=s0, s1=s1, s2=s2, mask=mask, interior=interior, d=d, x_r=x_r, y_r=y_r, n=n)
+
+
+def residual_degrees(aop, azimuth):
+    """The angle between an AoP and the nearer of a normal azimuth's two planes, degrees."""
+    apart = np.mod(aop - azimuth, np.pi)
+    return np.degrees(np.minimum(np.minimum(apart, np.pi - apart), np.abs(apart - np.pi / 2)))
+
+
+def view_residuals(scene, normals, index, camera, average=1):
+    """Residual (degrees), DoP and specular-type flag of one view's interior pixels, S1 and S2
+    averaged over `average` x `average` pixels first."""
+    g = view_geometry(scene, normals, index, camera)
+    s0, s1, s2 = g["s0"], g["s1"], g["s2"]
+    if average > 1:
+        s1, s2 = (masked_average(s, g["mask"], average) for s in (s1, s2))
+    n = g["n"]
+    azimuth = np.arctan2((n * g["y_r"]).sum(-1), (n * g["x_r"]).sum(-1))
     aop = 0.5 * np.arctan2(s2, s1)
     dop = np.hypot(s1, s2) / np.maximum(s0, 1e-9)
     apart = np.mod(aop - azimuth, np.pi)
-    to_diffuse = np.minimum(apart, np.pi - apart)
-    to_specular = np.abs(apart - np.pi / 2)
-    residual = np.degrees(np.minimum(to_diffuse, to_specular))
-    interior = cv2.erode((mask & true_mask).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-    return residual[interior], dop[interior], (to_specular < to_diffuse)[interior]
+    specular = np.abs(apart - np.pi / 2) < np.minimum(apart, np.pi - apart)
+    interior = g["interior"]
+    return residual_degrees(aop, azimuth)[interior], dop[interior], specular[interior]
 
 
 def main():
