@@ -16,17 +16,22 @@ best) and, bin by bin of DoP, the AoP's angle from the nearer of the true normal
 before and after the predicted off-axis part is taken away.
 
     rmvp dataset render-normals SCENE --mesh SCENE/gt/mesh.ply -o NORMALS
-    bench/specular_aop.py SCENE NORMALS [SAMPLES]
+    bench/specular_aop.py SCENE NORMALS [--samples N] [--corrected OUT]
 
-SAMPLES microfacet normals a pixel (default 512). The environment is looked up as Mitsuba's
+N microfacet normals a pixel (default 512). With --corrected, OUT becomes a copy of SCENE whose
+azimuth maps (`input_azimuth_maps/`, the AoP that the tangent cue reads) have the predicted
+off-axis part taken away; S0, S1, S2 stay as they are. Trained on, it shows what the tangent
+cue would give if the model predicted the lobe's polarization as this script does (from the
+true normals: an oracle). The environment is looked up as Mitsuba's
 `envmap` does: u = atan2(x, -z) / 2 pi, v = acos(y) / pi (top row = +Y).
 
 Needs numpy and OpenCV (`scripts/install-system-deps.sh bench`).
 """
 
+import argparse
 import json
 import os
-import sys
+import shutil
 
 os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")
 
@@ -131,11 +136,32 @@ def specular_stokes(n, d, x_r, y_r, alpha, camera, env, samples):
     return (polarized * np.cos(2 * angle)).mean(1), (polarized * np.sin(2 * angle)).mean(1)
 
 
+def write_corrected_azimuth(path, g, inside, across):
+    """Rewrite the azimuth map at `path` (16-bit, R = G = B = AoP / pi * 65535, alpha kept) with
+    the AoP of the view's S1, S2 less `across` along the normal's off-axis direction on the
+    `inside` pixels."""
+    n, x_r, y_r = (g[k][inside] for k in ("n", "x_r", "y_r"))
+    azimuth = np.arctan2((n * y_r).sum(-1), (n * x_r).sum(-1))
+    s1 = g["s1"][inside] + across * np.sin(2 * azimuth)
+    s2 = g["s2"][inside] - across * np.cos(2 * azimuth)
+    encoded = np.round(np.mod(0.5 * np.arctan2(s2, s1), np.pi) / np.pi * 65535).astype(np.uint16)
+    image = cv2.imread(path, cv2.IMREAD_UNCHANGED)
+    for channel in range(3):
+        image[..., channel][inside] = encoded
+    cv2.imwrite(path, image)
+
+
 def main():
-    if len(sys.argv) not in (3, 4):
-        sys.exit(__doc__)
-    scene, normals = sys.argv[1:3]
-    samples = int(sys.argv[3]) if len(sys.argv) == 4 else 512
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("scene")
+    parser.add_argument("normals")
+    parser.add_argument("--samples", type=int, default=512)
+    parser.add_argument("--corrected", metavar="OUT")
+    args = parser.parse_args()
+    scene, normals, samples = args.scene, args.normals, args.samples
+    if args.corrected:
+        # Plain copies: the scene's files may be read-only.
+        shutil.copytree(scene, args.corrected, copy_function=shutil.copyfile)
     cameras = json.load(open(f"{scene}/gt/cameras.json"))["cameras"]
     env = cv2.imread(f"{scene}/gt/env.exr", cv2.IMREAD_UNCHANGED).astype(np.float64).mean(axis=-1)
     vertices = read_vertices(f"{scene}/gt/mesh.ply")
@@ -154,6 +180,9 @@ def main():
         columns["measured_along"].append(s1 * c2 + s2_ * s2)
         columns["measured_across"].append(-s1 * s2 + s2_ * c2)
         columns["predicted_across"].append(-q * s2 + u * c2)
+        if args.corrected:
+            path = f"{args.corrected}/input_azimuth_maps/{index:04d}.png"
+            write_corrected_azimuth(path, g, inside, columns["predicted_across"][-1])
         columns["dop"].append(np.hypot(s1, s2_) / np.maximum(s0, 1e-9))
     along, across, predicted, dop = (np.concatenate(columns[k]) for k in columns)
     scale = (across * predicted).sum() / (predicted * predicted).sum()
