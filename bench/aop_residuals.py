@@ -37,7 +37,7 @@ def masked_average(image, mask, size):
 def view_geometry(scene, normals, index, camera):
     """One training view's channel-mean Stokes images, its interior pixels (inside the scene's
     and the true mask, eroded by two pixels), each pixel's ray `d`, Stokes frame `(x_r, y_r)`
-    and true normal `n`, all in the camera frame."""
+    and true normal `n`, all in the camera frame, and the normal's `azimuth` in that frame."""
     K = np.array(camera["K"])
     s0, s1, s2 = (np.load(f"{scene}/s{k}/{index:04d}.npy").mean(axis=2).astype(np.float64) for k in range(3))
     mask = cv2.imread(f"{scene}/mask/{index:04d}.png", cv2.IMREAD_GRAYSCALE) > 127
@@ -55,8 +55,9 @@ def view_geometry(scene, normals, index, camera):
     y_r = np.cross(d, x_r)
     n = normal_world @ np.array(camera["R"]).T
     n /= np.linalg.norm(n, axis=-1, keepdims=True) + 1e-12
+    azimuth = np.arctan2((n * y_r).sum(-1), (n * x_r).sum(-1))
     interior = cv2.erode((mask & true_mask).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
-    return dict(s0=s0, s1=s1, s2=s2, mask=mask, interior=interior, d=d, x_r=x_r, y_r=y_r, n=n)
+    return dict(s0=s0, s1=s1, s2=s2, mask=mask, interior=interior, d=d, x_r=x_r, y_r=y_r, n=n, azimuth=azimuth)
 
 
 def residual_degrees(aop, azimuth):
@@ -72,8 +73,7 @@ def view_residuals(scene, normals, index, camera, average=1):
     s0, s1, s2 = g["s0"], g["s1"], g["s2"]
     if average > 1:
         s1, s2 = (masked_average(s, g["mask"], average) for s in (s1, s2))
-    n = g["n"]
-    azimuth = np.arctan2((n * g["y_r"]).sum(-1), (n * g["x_r"]).sum(-1))
+    azimuth = g["azimuth"]
     aop = 0.5 * np.arctan2(s2, s1)
     dop = np.hypot(s1, s2) / np.maximum(s0, 1e-9)
     apart = np.mod(aop - azimuth, np.pi)

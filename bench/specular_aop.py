@@ -140,8 +140,7 @@ def write_corrected_azimuth(path, g, inside, across):
     """Rewrite the azimuth map at `path` (16-bit, R = G = B = AoP / pi * 65535, alpha kept) with
     the AoP of the view's S1, S2 less `across` along the normal's off-axis direction on the
     `inside` pixels."""
-    n, x_r, y_r = (g[k][inside] for k in ("n", "x_r", "y_r"))
-    azimuth = np.arctan2((n * y_r).sum(-1), (n * x_r).sum(-1))
+    azimuth = g["azimuth"][inside]
     s1 = g["s1"][inside] + across * np.sin(2 * azimuth)
     s2 = g["s2"][inside] - across * np.cos(2 * azimuth)
     encoded = np.round(np.mod(0.5 * np.arctan2(s2, s1), np.pi) / np.pi * 65535).astype(np.uint16)
@@ -174,16 +173,16 @@ def main():
         n, d, x_r, y_r = (g[k][inside] for k in ("n", "d", "x_r", "y_r"))
         alpha = roughness_image(vertices, camera, inside.shape)[inside]
         q, u = specular_stokes(n, d, x_r, y_r, alpha, camera, env, samples)
-        azimuth = np.arctan2((n * y_r).sum(-1), (n * x_r).sum(-1))
-        c2, s2 = np.cos(2 * azimuth), np.sin(2 * azimuth)
-        s0, s1, s2_ = (g[k][inside] for k in ("s0", "s1", "s2"))
-        columns["measured_along"].append(s1 * c2 + s2_ * s2)
-        columns["measured_across"].append(-s1 * s2 + s2_ * c2)
-        columns["predicted_across"].append(-q * s2 + u * c2)
+        cos2, sin2 = np.cos(2 * g["azimuth"][inside]), np.sin(2 * g["azimuth"][inside])
+        s0, s1, s2 = (g[k][inside] for k in ("s0", "s1", "s2"))
+        predicted_across = -q * sin2 + u * cos2
+        columns["measured_along"].append(s1 * cos2 + s2 * sin2)
+        columns["measured_across"].append(-s1 * sin2 + s2 * cos2)
+        columns["predicted_across"].append(predicted_across)
+        columns["dop"].append(np.hypot(s1, s2) / np.maximum(s0, 1e-9))
         if args.corrected:
             path = f"{args.corrected}/input_azimuth_maps/{index:04d}.png"
-            write_corrected_azimuth(path, g, inside, columns["predicted_across"][-1])
-        columns["dop"].append(np.hypot(s1, s2_) / np.maximum(s0, 1e-9))
+            write_corrected_azimuth(path, g, inside, predicted_across)
     along, across, predicted, dop = (np.concatenate(columns[k]) for k in columns)
     scale = (across * predicted).sum() / (predicted * predicted).sum()
 
