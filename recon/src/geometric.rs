@@ -9,7 +9,7 @@
 //! polarizations nearly cancel, the AoP of a real (microfacet) surface strays from both planes.
 
 use crate::data::{TrainView, TrainingSet};
-use crate::model::Model;
+use crate::model::{Model, ShadingInput};
 use crate::pbrdf::dot;
 use crate::trace::{sphere_trace, TraceLimits, TraceRay};
 use crate::volume::unit_sphere_span;
@@ -110,9 +110,29 @@ const START: f32 = 0.02;
 /// Visibility tracing: full SDF steps (as trained so far), at most 48.
 const VISIBILITY: TraceLimits = TraceLimits { step_scale: 1.0, max_step: f32::INFINITY, max_steps: 48 };
 
+/// One view of one surface point, for the geometric cue.
+struct Query {
+    /// The point's index.
+    point: usize,
+    /// The view's index.
+    view: usize,
+    /// The pixel the point projects to.
+    pixel: usize,
+    /// The point.
+    origin: [f32; 3],
+    /// Unit direction towards the camera.
+    dir: [f32; 3],
+    /// Depth where the visibility ray leaves the unit sphere.
+    exit: f32,
+    /// The view's ray towards the point and its Stokes frame.
+    frame: [[f32; 3]; 3],
+}
+
 /// For each surface point (unit frame) with its outward normal, the tangents of every training
 /// view that sees it (in front of the camera, inside the image and the view's mask, facing the
 /// camera and not occluded by the SDF), each weighted by [`aop_weight`] of its pixel's DoP.
+/// When the model's specular lobe tilts ([`crate::model::Radiance::off_axis`]), the part of
+/// each view's `(S1, S2)` that the tilt predicts is taken away before the AoP gives the tangents.
 pub fn tangents(
     set: &TrainingSet,
     reliability: f32,
@@ -122,17 +142,10 @@ pub fn tangents(
     points: &[[f32; 3]],
     normals: &[[f32; 3]],
 ) -> Vec<Vec<Tangents>> {
-    struct Query {
-        point: usize,
-        origin: [f32; 3],
-        dir: [f32; 3],
-        exit: f32,
-        tangents: Tangents,
-    }
     let mut queries = Vec::new();
     for (pi, (&x, &n)) in points.iter().zip(normals).enumerate() {
         let world = set.frame.point_to_world(x);
-        for view in &set.views {
+        for (vi, view) in set.views.iter().enumerate() {
             let to_camera = normalize([0, 1, 2].map(|k| view.center[k] - x[k]));
             if dot(to_camera, n) <= 0.0 {
                 continue;
@@ -150,36 +163,100 @@ pub fn tangents(
             let (fx, fy) = view.camera.stokes_frame(&d_world);
             let (fx, fy) = (set.frame.dir_from_world(&fx), set.frame.dir_from_world(&fy));
             let d = set.frame.dir_from_world(&d_world);
-            let (s, c) = view.aop[k].sin_cos();
-            let e = [0, 1, 2].map(|a| c * fx[a] + s * fy[a]);
             // A point inside the unit sphere always leaves it; outside, nothing can occlude it.
             let exit = unit_sphere_span(x, to_camera).map_or(0.0, |(_, far)| far);
-            queries.push(Query {
-                point: pi,
-                origin: x,
-                dir: to_camera,
-                exit,
-                tangents: Tangents { t: cross(d, e), t_hat: e, weight: aop_weight(pixel_dop(view, k), reliability) },
-            });
+            queries.push(Query { point: pi, view: vi, pixel: k, origin: x, dir: to_camera, exit, frame: [d, fx, fy] });
         }
     }
     // Batched sphere tracing towards each camera.
     let rays: Vec<TraceRay> =
         queries.iter().map(|q| TraceRay { origin: q.origin, dir: q.dir, start: START, end: q.exit }).collect();
-    let occluded: Vec<bool> =
-        sphere_trace(model, params, level_weight, &rays, VISIBILITY).iter().map(Option::is_some).collect();
+    let hits = sphere_trace(model, params, level_weight, &rays, VISIBILITY);
+    let visible: Vec<&Query> = queries.iter().zip(&hits).filter(|(_, hit)| hit.is_none()).map(|(q, _)| q).collect();
+    let off_axis = if model.radiance.tilts() {
+        predicted_off_axis(model, params, level_weight, points, normals, &visible)
+    } else {
+        Vec::new()
+    };
     let mut out = vec![Vec::new(); points.len()];
-    for (q, query) in queries.iter().enumerate() {
-        if !occluded[q] {
-            out[query.point].push(query.tangents);
-        }
+    for (i, q) in visible.iter().enumerate() {
+        let view = &set.views[q.view];
+        let [d, fx, fy] = q.frame;
+        let aop = match off_axis.get(i) {
+            Some(&off_axis) => {
+                let stokes = &view.stokes[9 * q.pixel..9 * q.pixel + 9];
+                let mean = |s: usize| stokes[3 * s..3 * s + 3].iter().sum::<f32>() / 3.0;
+                aop_without(view.aop[q.pixel], mean(1).hypot(mean(2)), off_axis)
+            }
+            None => view.aop[q.pixel],
+        };
+        let (s, c) = aop.sin_cos();
+        let e = [0, 1, 2].map(|a| c * fx[a] + s * fy[a]);
+        out[q.point].push(Tangents {
+            t: cross(d, e),
+            t_hat: e,
+            weight: aop_weight(pixel_dop(view, q.pixel), reliability),
+        });
     }
     out
+}
+
+/// The AoP of a measured linear polarization of angle `aop` (radians) and strength
+/// `sqrt(S1^2 + S2^2)` once the part `off_axis = (S1, S2)` is taken away.
+pub fn aop_without(aop: f32, strength: f32, off_axis: [f32; 2]) -> f32 {
+    let (s, c) = (2.0 * aop).sin_cos();
+    0.5 * (strength * s - off_axis[1]).atan2(strength * c - off_axis[0])
+}
+
+/// The model's off-axis `(S1, S2)` ([`crate::model::Radiance::off_axis`]) at each query's point,
+/// seen from its view with the given normal.
+fn predicted_off_axis(
+    model: &Model,
+    params: &[f32],
+    level_weight: &[f32],
+    points: &[[f32; 3]],
+    normals: &[[f32; 3]],
+    queries: &[&Query],
+) -> Vec<[f32; 2]> {
+    if queries.is_empty() {
+        return Vec::new();
+    }
+    let flat: Vec<f32> = queries.iter().flat_map(|q| points[q.point]).collect();
+    let field = model.field.infer(params, &flat, level_weight);
+    let width = model.field.outputs();
+    let features: Vec<f32> = field.chunks_exact(width).flat_map(|row| row[1..].iter().copied()).collect();
+    let normals: Vec<f32> = queries.iter().flat_map(|q| normalize(normals[q.point])).collect();
+    let view: Vec<f32> = queries.iter().flat_map(|q| q.dir).collect();
+    let frame_x: Vec<f32> = queries.iter().flat_map(|q| q.frame[1]).collect();
+    let frame_y: Vec<f32> = queries.iter().flat_map(|q| q.frame[2]).collect();
+    let input = ShadingInput {
+        points: &flat,
+        normals: &normals,
+        features: &features,
+        view: &view,
+        frame_x: &frame_x,
+        frame_y: &frame_y,
+    };
+    model.radiance.off_axis(params, &input)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn taking_the_off_axis_part_away_returns_the_aop_of_the_rest() {
+        // A normal's polarization at 30 degrees plus an off-axis part at -20 degrees.
+        let (on, off) = (30f32.to_radians(), -20f32.to_radians());
+        let on_axis = [0.2 * (2.0 * on).cos(), 0.2 * (2.0 * on).sin()];
+        let off_axis = [0.08 * (2.0 * off).cos(), 0.08 * (2.0 * off).sin()];
+        let (s1, s2) = (on_axis[0] + off_axis[0], on_axis[1] + off_axis[1]);
+        let measured = 0.5 * s2.atan2(s1);
+        assert!((measured - on).abs() > 5f32.to_radians(), "the off-axis part turns the AoP");
+        let aop = aop_without(measured, s1.hypot(s2), off_axis);
+        assert!((aop - on).abs() < 1e-5, "{} vs 30", aop.to_degrees());
+        assert!((aop_without(measured, s1.hypot(s2), [0.0, 0.0]) - measured).abs() < 1e-6);
+    }
 
     #[test]
     fn aop_weight_is_half_at_the_reliability_dop_and_one_without_it() {

@@ -39,6 +39,11 @@ pub struct ModelConfig {
     /// view-independent diffuse network cannot follow); off: NeRSP's normalised diffuse.
     #[serde(default)]
     pub diffuse_transmission: bool,
+    /// Let the specular lobe's polarization turn off the normal: a small network of the
+    /// reflected direction's encoding tilts the half vector whose plane of incidence sets the
+    /// specular AoP ([`Radiance::off_axis`]); off: NeRSP's lobe, polarized about the normal.
+    #[serde(default)]
+    pub specular_tilt: bool,
 }
 
 /// The SDF field: point -> (SDF, features).
@@ -218,14 +223,18 @@ pub struct ShadingCache {
     specular_rgb: Vec<f32>,
     roughness_value: Vec<f32>,
     ide_jacobian: Vec<[([f32; 3], f32); IDE_WIDTH]>,
+    tilt: MlpCache,
+    tilt_value: Vec<[f32; 3]>,
 }
 
-/// The three radiance networks, and the specular lobe's polarization scale when it is learned.
+/// The three radiance networks, the specular lobe's polarization scale when it is learned and
+/// its tilt network when the model has one.
 #[derive(Clone, Debug)]
 pub struct Radiance {
     diffuse: Mlp,
     roughness: Mlp,
     specular: Mlp,
+    tilt: Option<Mlp>,
     features: usize,
     polarization: Option<usize>,
     diffuse_transmission: bool,
@@ -235,6 +244,13 @@ fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
 }
 
+/// The specular lobe's tilted half vector (unnormalised): the unit normal `n` plus the part of
+/// `tilt` across it.
+fn tilted(n: [f32; 3], tilt: [f32; 3]) -> [f32; 3] {
+    let along = dot(tilt, n);
+    [0, 1, 2].map(|k| n[k] + tilt[k] - along * n[k])
+}
+
 impl Radiance {
     fn new(layout: &mut ParamLayout, config: &ModelConfig) -> Self {
         let (f, h, d) = (config.features, config.color_hidden, config.color_depth);
@@ -242,6 +258,7 @@ impl Radiance {
             diffuse: Mlp::new(layout, 6 + f, h, d, 3, Activation::Relu, None),
             roughness: Mlp::new(layout, 3 + f, h, d.min(2), 1, Activation::Relu, None),
             specular: Mlp::new(layout, IDE_WIDTH + 1 + f, h, d, 3, Activation::Relu, None),
+            tilt: config.specular_tilt.then(|| Mlp::new(layout, IDE_WIDTH + 1, h, 1, 3, Activation::Relu, None)),
             features: f,
             polarization: None,
             diffuse_transmission: config.diffuse_transmission,
@@ -255,6 +272,12 @@ impl Radiance {
     /// it; its gradient passes the clamp unchanged, so it can return from beyond [0, 1].
     pub fn specular_polarization(&self, params: &[f32]) -> f32 {
         self.polarization.map_or(1.0, |i| params[i].clamp(0.0, 1.0))
+    }
+
+    /// Whether the specular lobe's polarization can turn off the normal
+    /// ([`ModelConfig::specular_tilt`]).
+    pub fn tilts(&self) -> bool {
+        self.tilt.is_some()
     }
 
     /// Where the polarization scale sits in the parameter vector, when it is learned.
@@ -282,6 +305,12 @@ impl Radiance {
     fn init(&self, params: &mut [f32], rng: &mut Rng) {
         for mlp in [&self.diffuse, &self.roughness, &self.specular] {
             mlp.init(params, Init::Default, rng);
+        }
+        if let Some(tilt) = &self.tilt {
+            // The output layer starts at zero: no tilt, NeRSP's lobe.
+            tilt.init(params, Init::Default, rng);
+            let &(inputs, outputs, weight, _) = tilt.layer_shapes().last().expect("an output layer");
+            params[weight..weight + (inputs + 1) * outputs].fill(0.0);
         }
     }
 
@@ -311,7 +340,7 @@ impl Radiance {
             .map(|&x| sigmoid(x))
             .collect();
         let mut specular_rgb = vec![0f32; 3 * n];
-        let (mut roughness_value, mut ide_jacobian) = (Vec::new(), Vec::new());
+        let (mut roughness_value, mut ide_jacobian, mut tilt_value) = (Vec::new(), Vec::new(), Vec::new());
         if !diffuse_only {
             let mut input = Vec::with_capacity(n * (3 + f));
             for i in 0..n {
@@ -325,6 +354,7 @@ impl Radiance {
                 .map(|&x| sigmoid(x))
                 .collect();
             let mut input = Vec::with_capacity(n * (IDE_WIDTH + 1 + f));
+            let mut tilt_input = Vec::with_capacity(if self.tilt.is_some() { n * (IDE_WIDTH + 1) } else { 0 });
             for i in 0..n {
                 let (nv, v) = (row3(s.normals, i), row3(s.view, i));
                 let c = dot(nv, v);
@@ -334,6 +364,10 @@ impl Radiance {
                 input.push(c);
                 input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
                 ide_jacobian.push(jac);
+                if self.tilt.is_some() {
+                    tilt_input.extend_from_slice(&values);
+                    tilt_input.push(c);
+                }
             }
             specular_rgb = self
                 .specular
@@ -341,6 +375,10 @@ impl Radiance {
                 .iter()
                 .map(|&x| sigmoid(x))
                 .collect();
+            if let Some(tilt) = &self.tilt {
+                let raw = tilt.evaluate(params, &tilt_input, n, cache.as_deref_mut().map(|c| &mut c.tilt));
+                tilt_value = raw.chunks_exact(3).map(|r| [r[0], r[1], r[2]]).collect();
+            }
         }
         let scale = self.specular_polarization(params);
         let mut stokes = vec![0f32; STOKES * n];
@@ -350,14 +388,18 @@ impl Radiance {
             let ((rho_d, rho_s), _) = degrees(c);
             let rho_s = scale * rho_s;
             let (t, _) = self.transmission(c);
-            let ((c2, s2), _) = double_azimuth(nv, row3(s.frame_x, i), row3(s.frame_y, i));
+            let (fx, fy) = (row3(s.frame_x, i), row3(s.frame_y, i));
+            let ((c2, s2), _) = double_azimuth(nv, fx, fy);
+            let ((c2h, s2h), _) = match tilt_value.get(i) {
+                Some(&tilt) => double_azimuth(tilted(nv, tilt), fx, fy),
+                None => ((c2, s2), ([0.0; 3], [0.0; 3])),
+            };
             let out = &mut stokes[STOKES * i..STOKES * (i + 1)];
             for ch in 0..3 {
                 let (d, sp) = (t * diffuse_rgb[3 * i + ch], specular_rgb[3 * i + ch]);
-                let polarized = rho_d * d - rho_s * sp;
                 out[ch] = d + sp;
-                out[3 + ch] = polarized * c2;
-                out[6 + ch] = polarized * s2;
+                out[3 + ch] = rho_d * d * c2 - rho_s * sp * c2h;
+                out[6 + ch] = rho_d * d * s2 - rho_s * sp * s2h;
             }
         }
         if let Some(cache) = cache {
@@ -366,8 +408,35 @@ impl Radiance {
             cache.ide_jacobian = ide_jacobian;
             cache.diffuse_rgb = diffuse_rgb;
             cache.specular_rgb = specular_rgb;
+            cache.tilt_value = tilt_value;
         }
         stokes
+    }
+
+    /// The part of each sample's channel-mean `(S1, S2)` that the specular lobe's tilt adds to
+    /// NeRSP's lobe polarized about the normal (zero without a tilt network): what a measured
+    /// AoP holds that no normal's plane explains, for the geometric cue to take away.
+    pub fn off_axis(&self, params: &[f32], s: &ShadingInput) -> Vec<[f32; 2]> {
+        let n = s.points.len() / 3;
+        if self.tilt.is_none() {
+            return vec![[0.0; 2]; n];
+        }
+        let mut cache = ShadingCache::default();
+        self.shade(params, s, false, Some(&mut cache));
+        let row3 = |a: &[f32], i: usize| [a[3 * i], a[3 * i + 1], a[3 * i + 2]];
+        let scale = self.specular_polarization(params);
+        (0..n)
+            .map(|i| {
+                let nv = row3(s.normals, i);
+                let ((_, rho_s), _) = degrees(dot(nv, row3(s.view, i)));
+                let (fx, fy) = (row3(s.frame_x, i), row3(s.frame_y, i));
+                let ((c2, s2), _) = double_azimuth(nv, fx, fy);
+                let ((c2h, s2h), _) = double_azimuth(tilted(nv, cache.tilt_value[i]), fx, fy);
+                let specular = cache.specular_rgb[3 * i..3 * i + 3].iter().sum::<f32>() / 3.0;
+                let amplitude = -scale * rho_s * specular;
+                [amplitude * (c2h - c2), amplitude * (s2h - s2)]
+            })
+            .collect()
     }
 
     /// Backward of [`Radiance::shade`]: parameter gradients into `grad`; returns the gradients
@@ -388,6 +457,7 @@ impl Radiance {
         let mut d_diffuse_raw = vec![0f32; 3 * n];
         let mut d_specular_raw = vec![0f32; 3 * n];
         let mut d_cos = vec![0f32; n];
+        let mut d_tilt = vec![0f32; if cache.tilt_value.is_empty() { 0 } else { 3 * n }];
         let scale = self.specular_polarization(params);
         let mut d_scale = 0f32;
         for i in 0..n {
@@ -395,29 +465,41 @@ impl Radiance {
             let c = dot(nv, v);
             let ((rho_d, fresnel_s), (drho_d, dfresnel_s)) = degrees(c);
             let (rho_s, drho_s) = (scale * fresnel_s, scale * dfresnel_s);
-            let ((c2, s2), (dc2, ds2)) = double_azimuth(nv, row3(s.frame_x, i), row3(s.frame_y, i));
+            let (fx, fy) = (row3(s.frame_x, i), row3(s.frame_y, i));
+            let ((c2, s2), (dc2, ds2)) = double_azimuth(nv, fx, fy);
+            let tilt = cache.tilt_value.get(i).copied().unwrap_or([0.0; 3]);
+            let ((c2h, s2h), (dc2h, ds2h)) = double_azimuth(tilted(nv, tilt), fx, fy);
             let (t, dt) = self.transmission(c);
             let g = &d_stokes[STOKES * i..STOKES * (i + 1)];
-            let (mut g_rho_d, mut g_rho_s, mut g_c2, mut g_s2, mut g_t) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            let (mut g_rho_d, mut g_rho_s, mut g_t) = (0.0, 0.0, 0.0);
+            let (mut g_c2, mut g_s2, mut g_c2h, mut g_s2h) = (0.0, 0.0, 0.0, 0.0);
             for ch in 0..3 {
                 let (raw, sp) = (cache.diffuse_rgb[3 * i + ch], cache.specular_rgb[3 * i + ch]);
                 let d = t * raw;
                 let along = g[3 + ch] * c2 + g[6 + ch] * s2;
-                let polarized = rho_d * d - rho_s * sp;
+                let along_h = g[3 + ch] * c2h + g[6 + ch] * s2h;
                 g_rho_d += d * along;
-                g_rho_s -= sp * along;
-                g_c2 += polarized * g[3 + ch];
-                g_s2 += polarized * g[6 + ch];
+                g_rho_s -= sp * along_h;
+                g_c2 += rho_d * d * g[3 + ch];
+                g_s2 += rho_d * d * g[6 + ch];
+                g_c2h -= rho_s * sp * g[3 + ch];
+                g_s2h -= rho_s * sp * g[6 + ch];
                 g_t += (g[ch] + rho_d * along) * raw;
                 d_diffuse_raw[3 * i + ch] = (g[ch] + rho_d * along) * t * raw * (1.0 - raw);
                 if !cache.diffuse_only {
-                    d_specular_raw[3 * i + ch] = (g[ch] - rho_s * along) * sp * (1.0 - sp);
+                    d_specular_raw[3 * i + ch] = (g[ch] - rho_s * along_h) * sp * (1.0 - sp);
                 }
             }
             d_cos[i] = g_rho_d * drho_d + g_rho_s * drho_s + g_t * dt;
             d_scale += g_rho_s * fresnel_s;
+            // The tilted half vector m = n + tilt - (tilt . n) n.
+            let d_m = [0, 1, 2].map(|k| g_c2h * dc2h[k] + g_s2h * ds2h[k]);
+            let (across, m_along) = (1.0 - dot(tilt, nv), dot(d_m, nv));
             for k in 0..3 {
-                d_normal[3 * i + k] += g_c2 * dc2[k] + g_s2 * ds2[k];
+                d_normal[3 * i + k] += g_c2 * dc2[k] + g_s2 * ds2[k] + d_m[k] * across - tilt[k] * m_along;
+            }
+            if !cache.tilt_value.is_empty() {
+                d_tilt[3 * i..3 * i + 3].copy_from_slice(&[0, 1, 2].map(|k| d_m[k] - m_along * nv[k]));
             }
         }
         if let Some(p) = self.polarization {
@@ -435,23 +517,30 @@ impl Radiance {
         if !cache.diffuse_only {
             let d_in = self.specular.backward(params, &cache.specular, &d_specular_raw, grad);
             let width = IDE_WIDTH + 1 + f;
+            // The tilt network reads the same encoding and n . v.
+            let d_tilt_in = match &self.tilt {
+                Some(tilt) => tilt.backward(params, &cache.tilt, &d_tilt, grad),
+                None => vec![0f32; n * (IDE_WIDTH + 1)],
+            };
             let mut d_rough_raw = vec![0f32; n];
             for i in 0..n {
                 let row = &d_in[width * i..width * (i + 1)];
+                let tilt_row = &d_tilt_in[(IDE_WIDTH + 1) * i..(IDE_WIDTH + 1) * (i + 1)];
                 let (nv, v) = (row3(s.normals, i), row3(s.view, i));
                 let c = dot(nv, v);
                 let mut d_reflected = [0f32; 3];
                 let mut d_rough = 0f32;
                 for (k, (dw, dr)) in cache.ide_jacobian[i].iter().enumerate() {
+                    let d_value = row[k] + tilt_row[k];
                     for a in 0..3 {
-                        d_reflected[a] += row[k] * dw[a];
+                        d_reflected[a] += d_value * dw[a];
                     }
-                    d_rough += row[k] * dr;
+                    d_rough += d_value * dr;
                 }
                 let r = cache.roughness_value[i];
                 d_rough_raw[i] = d_rough * r * (1.0 - r);
                 // reflected = 2 c n - v, c = n . v (also a direct input).
-                let dc = row[IDE_WIDTH] + 2.0 * dot(d_reflected, nv);
+                let dc = row[IDE_WIDTH] + tilt_row[IDE_WIDTH] + 2.0 * dot(d_reflected, nv);
                 for a in 0..3 {
                     d_normal[3 * i + a] += 2.0 * c * d_reflected[a];
                 }
@@ -543,5 +632,88 @@ impl Model {
         } else {
             s
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::presets;
+
+    /// `n` random unit vectors.
+    fn unit_vectors(n: usize, rng: &mut Rng) -> Vec<f32> {
+        (0..n)
+            .flat_map(|_| {
+                let v = [rng.normal(), rng.normal(), rng.normal()];
+                let l = dot(v, v).sqrt();
+                v.map(|x| x / l)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_off_axis_part_is_what_the_tilt_adds_to_the_shaded_polarization() {
+        let mut config = presets::model(Preset::Fast);
+        config.grid = Some((4, 12, 8, 32));
+        config.specular_tilt = true;
+        let model = Model::new(config);
+        let mut params = model.init(3);
+        let radiance = &model.radiance;
+        let n = 64;
+        let mut rng = Rng::for_pixel(5, 0, 0);
+        let points: Vec<f32> = (0..3 * n).map(|_| rng.next_f32() - 0.5).collect();
+        let normals = unit_vectors(n, &mut rng);
+        let features: Vec<f32> = (0..n * model.config.features).map(|_| rng.normal()).collect();
+        // Views within 80 degrees of the normal, and each ray's Stokes frame.
+        let mut view = unit_vectors(n, &mut rng);
+        for i in 0..n {
+            let (nv, v) = ([0, 1, 2].map(|k| normals[3 * i + k]), [0, 1, 2].map(|k| view[3 * i + k]));
+            let w = [0, 1, 2].map(|k| nv[k] + 0.8 * v[k]);
+            let l = dot(w, w).sqrt();
+            view[3 * i..3 * i + 3].copy_from_slice(&w.map(|x| x / l));
+        }
+        let (mut frame_x, mut frame_y) = (Vec::new(), Vec::new());
+        for v in view.chunks_exact(3) {
+            let a = if v[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+            let along = dot(a, [v[0], v[1], v[2]]);
+            let x = [0, 1, 2].map(|k| a[k] - along * v[k]);
+            let l = dot(x, x).sqrt();
+            let x = x.map(|c| c / l);
+            frame_x.extend_from_slice(&x);
+            frame_y.extend_from_slice(&[
+                v[1] * x[2] - v[2] * x[1],
+                v[2] * x[0] - v[0] * x[2],
+                v[0] * x[1] - v[1] * x[0],
+            ]);
+        }
+        let input = ShadingInput {
+            points: &points,
+            normals: &normals,
+            features: &features,
+            view: &view,
+            frame_x: &frame_x,
+            frame_y: &frame_y,
+        };
+        // A fresh tilt network adds nothing.
+        let untilted = radiance.shade(&params, &input, false, None);
+        assert!(radiance.off_axis(&params, &input).iter().all(|d| *d == [0.0, 0.0]));
+        // A lively one: its output layer (zero at first, just before the variance) set.
+        let zero: Vec<usize> = (0..model.variance).rev().take_while(|&i| params[i] == 0.0).collect();
+        for &i in &zero {
+            params[i] = 0.5 * rng.normal();
+        }
+        let tilted = radiance.shade(&params, &input, false, None);
+        let off_axis = radiance.off_axis(&params, &input);
+        let mut largest = 0f32;
+        for i in 0..n {
+            let mean = |s: &[f32], k: usize| s[STOKES * i + 3 * k..STOKES * i + 3 * k + 3].iter().sum::<f32>() / 3.0;
+            assert!((mean(&tilted, 0) - mean(&untilted, 0)).abs() < 1e-6, "the tilt changes no intensity");
+            for (k, d) in [1, 2].into_iter().zip(off_axis[i]) {
+                let added = mean(&tilted, k) - mean(&untilted, k);
+                assert!((added - d).abs() < 1e-5, "sample {i} S{k}: {added} vs {d}");
+                largest = largest.max(d.abs());
+            }
+        }
+        assert!(largest > 1e-2, "the tilt should turn some samples' polarization: {largest}");
     }
 }

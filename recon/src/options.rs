@@ -74,6 +74,12 @@ pub struct ReconOptions {
     /// default: the preset's (0: NeRSP's plain term).
     #[cfg_attr(feature = "clap", arg(long, value_name = "DEGREES"))]
     pub tangent_robust_angle: Option<f32>,
+    /// Let the specular lobe's AoP turn off the normal (a rough lobe lit from one side is
+    /// polarized about its lit half vectors), learned by a small network of the reflected
+    /// direction, and take that predicted turn out of each view's AoP before the tangent loss;
+    /// default: the preset's (off: NeRSP's lobe, polarized about the normal).
+    #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
+    pub specular_tilt: Option<bool>,
     /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the
     /// intrinsics scaled); the outputs are written at the scene's size. The official code trains
     /// RMVP3D at 2 (612x512), PANDORA at 4.
@@ -115,6 +121,7 @@ impl Default for ReconOptions {
             aop_reliability: None,
             tangent_azimuth_only: None,
             tangent_robust_angle: None,
+            specular_tilt: None,
             downscale: 1,
             seed: 0,
             mesh_res: 256,
@@ -228,6 +235,9 @@ impl ReconOptions {
         }
         if let Some(angle) = self.tangent_robust_angle {
             config.tangent_robust_angle = angle;
+        }
+        if let Some(on) = self.specular_tilt {
+            config.model.specular_tilt = on;
         }
         config
     }

@@ -63,6 +63,7 @@ pub fn model(preset: Preset) -> ModelConfig {
             color_depth: 4,
             learned_polarization: false,
             diffuse_transmission: false,
+            specular_tilt: false,
         },
         Preset::Fast | Preset::Dense => ModelConfig {
             preset,
@@ -78,6 +79,7 @@ pub fn model(preset: Preset) -> ModelConfig {
             // Lower normal error on the Mitsuba set with the azimuth-only tangent gradient
             // (docs/benchmarks.md): a dielectric's diffuse light dims towards grazing views.
             diffuse_transmission: true,
+            specular_tilt: false,
         },
     }
 }
