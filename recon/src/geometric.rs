@@ -10,7 +10,7 @@
 
 use crate::data::{TrainView, TrainingSet};
 use crate::model::{Model, ShadingInput};
-use crate::pbrdf::dot;
+use crate::pbrdf::{cross, dot};
 use crate::trace::{sphere_trace, TraceLimits, TraceRay};
 use crate::volume::unit_sphere_span;
 use rmvp_dataset::polarization;
@@ -38,14 +38,15 @@ pub fn aop_weight(dop: f32, reliability: f32) -> f32 {
 
 /// DoP of pixel `k`'s channel-mean Stokes target, as its AoP is taken (the targets' common
 /// scale cancels).
-fn pixel_dop(view: &TrainView, k: usize) -> f32 {
+/// Pixel `k`'s measured `(S0, S1, S2)`, each the mean of its three colour channels.
+fn channel_means(view: &TrainView, k: usize) -> [f32; 3] {
     let stokes = &view.stokes[9 * k..9 * k + 9];
-    let mean = |s: usize| stokes[3 * s..3 * s + 3].iter().sum::<f32>() / 3.0;
-    polarization::dop(mean(0), mean(1), mean(2))
+    [0, 1, 2].map(|s| stokes[3 * s..3 * s + 3].iter().sum::<f32>() / 3.0)
 }
 
-fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+fn pixel_dop(view: &TrainView, k: usize) -> f32 {
+    let [s0, s1, s2] = channel_means(view, k);
+    polarization::dop(s0, s1, s2)
 }
 
 fn normalize(a: [f32; 3]) -> [f32; 3] {
@@ -184,9 +185,8 @@ pub fn tangents(
         let [d, fx, fy] = q.frame;
         let aop = match off_axis.get(i) {
             Some(&off_axis) => {
-                let stokes = &view.stokes[9 * q.pixel..9 * q.pixel + 9];
-                let mean = |s: usize| stokes[3 * s..3 * s + 3].iter().sum::<f32>() / 3.0;
-                aop_without(view.aop[q.pixel], mean(1).hypot(mean(2)), off_axis)
+                let [_, s1, s2] = channel_means(view, q.pixel);
+                aop_without(view.aop[q.pixel], s1.hypot(s2), off_axis)
             }
             None => view.aop[q.pixel],
         };
