@@ -39,9 +39,10 @@ pub struct ModelConfig {
     /// view-independent diffuse network cannot follow); off: NeRSP's normalised diffuse.
     #[serde(default)]
     pub diffuse_transmission: bool,
-    /// Let the specular lobe's polarization turn off the normal: a small network of the
-    /// reflected direction's encoding tilts the half vector whose plane of incidence sets the
-    /// specular AoP ([`Radiance::off_axis`]); off: NeRSP's lobe, polarized about the normal.
+    /// Let the specular lobe's polarization turn off the normal: the half vector whose plane of
+    /// incidence sets the specular AoP leans towards the light that the specular network says
+    /// lies beside the mirror direction ([`Radiance::off_axis`]); off: NeRSP's lobe, polarized
+    /// about the normal.
     #[serde(default)]
     pub specular_tilt: bool,
 }
@@ -223,21 +224,47 @@ pub struct ShadingCache {
     specular_rgb: Vec<f32>,
     roughness_value: Vec<f32>,
     ide_jacobian: Vec<[([f32; 3], f32); IDE_WIDTH]>,
-    tilt: MlpCache,
     tilt_value: Vec<[f32; 3]>,
+    off_axis: Vec<[f32; 2]>,
 }
 
 /// The three radiance networks, the specular lobe's polarization scale when it is learned and
-/// its tilt network when the model has one.
+/// whether its lobe tilts towards its light.
 #[derive(Clone, Debug)]
 pub struct Radiance {
     diffuse: Mlp,
     roughness: Mlp,
     specular: Mlp,
-    tilt: Option<Mlp>,
+    tilt: bool,
     features: usize,
     polarization: Option<usize>,
     diffuse_transmission: bool,
+}
+
+/// The largest shift of the mean lit reflected direction off the mirror direction (radians,
+/// about): a lobe's light cannot lean farther than its own width.
+const MAX_SHIFT: f32 = 0.5;
+
+/// The share of the lit lobe's shift ([`lit_tilt`]) that the model applies. The shift is one
+/// bounce of an unshadowed lobe; on Mitsuba's renders that one-bounce prediction, made from the
+/// true shape and light, explains the measured off-axis polarization best at 0.34-0.79 of its
+/// scale (`docs/benchmarks.md`), the rest being shadowed, interreflected or unpolarized light.
+const TILT_SHARE: f32 = 0.5;
+
+/// The tilt (across the unit normal `n`, [`tilted`]) of the half vector that reflects the unit
+/// view direction `v` into the mean lit direction of a lobe about the mirror direction `r`
+/// with variance `rough` under light whose log has gradient `grad_log` at `r`: that mean is
+/// `r + rough * grad_log` across `r` (at most [`MAX_SHIFT`] away).
+fn lit_tilt(n: [f32; 3], v: [f32; 3], r: [f32; 3], rough: f32, grad_log: [f32; 3]) -> [f32; 3] {
+    let along = dot(grad_log, r);
+    let shift = [0, 1, 2].map(|k| rough * (grad_log[k] - along * r[k]));
+    let size = dot(shift, shift).sqrt();
+    let cap = if size > MAX_SHIFT { MAX_SHIFT / size } else { 1.0 };
+    let mean = [0, 1, 2].map(|k| r[k] + cap * shift[k]);
+    let mean_len = dot(mean, mean).sqrt();
+    let m = [0, 1, 2].map(|k| v[k] + mean[k] / mean_len);
+    let m_along = dot(m, n).max(1e-3);
+    [0, 1, 2].map(|k| m[k] / m_along - n[k])
 }
 
 fn sigmoid(x: f32) -> f32 {
@@ -258,7 +285,7 @@ impl Radiance {
             diffuse: Mlp::new(layout, 6 + f, h, d, 3, Activation::Relu, None),
             roughness: Mlp::new(layout, 3 + f, h, d.min(2), 1, Activation::Relu, None),
             specular: Mlp::new(layout, IDE_WIDTH + 1 + f, h, d, 3, Activation::Relu, None),
-            tilt: config.specular_tilt.then(|| Mlp::new(layout, IDE_WIDTH + 1, h, 1, 3, Activation::Relu, None)),
+            tilt: config.specular_tilt,
             features: f,
             polarization: None,
             diffuse_transmission: config.diffuse_transmission,
@@ -277,7 +304,7 @@ impl Radiance {
     /// Whether the specular lobe's polarization can turn off the normal
     /// ([`ModelConfig::specular_tilt`]).
     pub fn tilts(&self) -> bool {
-        self.tilt.is_some()
+        self.tilt
     }
 
     /// Where the polarization scale sits in the parameter vector, when it is learned.
@@ -306,12 +333,6 @@ impl Radiance {
         for mlp in [&self.diffuse, &self.roughness, &self.specular] {
             mlp.init(params, Init::Default, rng);
         }
-        if let Some(tilt) = &self.tilt {
-            // The output layer starts at zero: no tilt, NeRSP's lobe.
-            tilt.init(params, Init::Default, rng);
-            let &(inputs, outputs, weight, _) = tilt.layer_shapes().last().expect("an output layer");
-            params[weight..weight + (inputs + 1) * outputs].fill(0.0);
-        }
     }
 
     /// Shade `n` samples into Stokes vectors (n x 9), keeping what backward needs in `cache`
@@ -322,7 +343,20 @@ impl Radiance {
         params: &[f32],
         s: &ShadingInput,
         diffuse_only: bool,
+        cache: Option<&mut ShadingCache>,
+    ) -> Vec<f32> {
+        self.shade_tilted(params, s, diffuse_only, cache, None)
+    }
+
+    /// [`Radiance::shade`] with the lobe's tilts given (`tilts`, one per sample) instead of
+    /// read from the light, as the backward pass sees them.
+    fn shade_tilted(
+        &self,
+        params: &[f32],
+        s: &ShadingInput,
+        diffuse_only: bool,
         mut cache: Option<&mut ShadingCache>,
+        tilts: Option<&[[f32; 3]]>,
     ) -> Vec<f32> {
         let n = s.points.len() / 3;
         let f = self.features;
@@ -354,7 +388,6 @@ impl Radiance {
                 .map(|&x| sigmoid(x))
                 .collect();
             let mut input = Vec::with_capacity(n * (IDE_WIDTH + 1 + f));
-            let mut tilt_input = Vec::with_capacity(if self.tilt.is_some() { n * (IDE_WIDTH + 1) } else { 0 });
             for i in 0..n {
                 let (nv, v) = (row3(s.normals, i), row3(s.view, i));
                 let c = dot(nv, v);
@@ -364,10 +397,6 @@ impl Radiance {
                 input.push(c);
                 input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
                 ide_jacobian.push(jac);
-                if self.tilt.is_some() {
-                    tilt_input.extend_from_slice(&values);
-                    tilt_input.push(c);
-                }
             }
             specular_rgb = self
                 .specular
@@ -375,13 +404,16 @@ impl Radiance {
                 .iter()
                 .map(|&x| sigmoid(x))
                 .collect();
-            if let Some(tilt) = &self.tilt {
-                let raw = tilt.evaluate(params, &tilt_input, n, cache.as_deref_mut().map(|c| &mut c.tilt));
-                tilt_value = raw.chunks_exact(3).map(|r| [r[0], r[1], r[2]]).collect();
+            if self.tilt {
+                tilt_value = match tilts {
+                    Some(tilts) => tilts.to_vec(),
+                    None => self.lit_tilts(params, s, &roughness_value, &specular_rgb),
+                };
             }
         }
         let scale = self.specular_polarization(params);
         let mut stokes = vec![0f32; STOKES * n];
+        let mut off_axis = Vec::with_capacity(tilt_value.len());
         for i in 0..n {
             let nv = row3(s.normals, i);
             let c = dot(nv, row3(s.view, i));
@@ -401,8 +433,13 @@ impl Radiance {
                 out[3 + ch] = rho_d * d * c2 - rho_s * sp * c2h;
                 out[6 + ch] = rho_d * d * s2 - rho_s * sp * s2h;
             }
+            if !tilt_value.is_empty() {
+                let amplitude = -rho_s * specular_rgb[3 * i..3 * i + 3].iter().sum::<f32>() / 3.0;
+                off_axis.push([amplitude * (c2h - c2), amplitude * (s2h - s2)]);
+            }
         }
         if let Some(cache) = cache {
+            cache.off_axis = off_axis;
             cache.diffuse_only = diffuse_only;
             cache.roughness_value = roughness_value;
             cache.ide_jacobian = ide_jacobian;
@@ -413,30 +450,61 @@ impl Radiance {
         stokes
     }
 
+    /// The tilt of each sample's mean lit half vector off the normal, read from the specular
+    /// network itself: that network gives the environment filtered by the lobe as a function of
+    /// the reflected direction `r`, and for a lobe of variance `rough` about `r` the mean of the
+    /// directions it gathers, weighted by their light, is `r + rough * grad log L(r)` (Tweedie's
+    /// formula for the heat kernel that the IDE's attenuation is), of which [`TILT_SHARE`] is
+    /// applied. The gradient comes from forward differences of the network (channel mean) along
+    /// the three axes, projected across `r`; the tilt is held fixed in the backward pass, so it
+    /// follows the light the radiance fits and no loss can bend it to excuse a wrong normal.
+    fn lit_tilts(&self, params: &[f32], s: &ShadingInput, roughness: &[f32], specular_rgb: &[f32]) -> Vec<[f32; 3]> {
+        const STEP: f32 = 0.02;
+        let n = s.points.len() / 3;
+        let f = self.features;
+        let row3 = |a: &[f32], i: usize| [a[3 * i], a[3 * i + 1], a[3 * i + 2]];
+        let mut input = Vec::with_capacity(3 * n * (IDE_WIDTH + 1 + f));
+        let mut reflected = Vec::with_capacity(n);
+        for i in 0..n {
+            let (nv, v) = (row3(s.normals, i), row3(s.view, i));
+            let c = dot(nv, v);
+            let r = [0, 1, 2].map(|k| 2.0 * c * nv[k] - v[k]);
+            for axis in 0..3 {
+                let mut w = r;
+                w[axis] += STEP;
+                let (values, _) = ide(w, roughness[i]);
+                input.extend_from_slice(&values);
+                input.push(c);
+                input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
+            }
+            reflected.push(r);
+        }
+        let shifted = self.specular.evaluate(params, &input, 3 * n, None);
+        (0..n)
+            .map(|i| {
+                let (nv, v, r) = (row3(s.normals, i), row3(s.view, i), reflected[i]);
+                let here = specular_rgb[3 * i..3 * i + 3].iter().sum::<f32>() / 3.0;
+                let rows = &shifted[9 * i..9 * (i + 1)];
+                let g = [0, 1, 2].map(|a| {
+                    let there = rows[3 * a..3 * a + 3].iter().map(|&x| sigmoid(x)).sum::<f32>() / 3.0;
+                    (there - here) / (STEP * here.max(1e-3))
+                });
+                lit_tilt(nv, v, r, TILT_SHARE * roughness[i], g)
+            })
+            .collect()
+    }
+
     /// The part of each sample's channel-mean `(S1, S2)` that the specular lobe's tilt adds to
-    /// NeRSP's lobe polarized about the normal (zero without a tilt network): what a measured
+    /// NeRSP's lobe polarized about the normal (zero when the lobe does not tilt): what a measured
     /// AoP holds that no normal's plane explains, for the geometric cue to take away.
     pub fn off_axis(&self, params: &[f32], s: &ShadingInput) -> Vec<[f32; 2]> {
         let n = s.points.len() / 3;
-        if self.tilt.is_none() {
+        if !self.tilt {
             return vec![[0.0; 2]; n];
         }
         let mut cache = ShadingCache::default();
         self.shade(params, s, false, Some(&mut cache));
-        let row3 = |a: &[f32], i: usize| [a[3 * i], a[3 * i + 1], a[3 * i + 2]];
-        let scale = self.specular_polarization(params);
-        (0..n)
-            .map(|i| {
-                let nv = row3(s.normals, i);
-                let ((_, rho_s), _) = degrees(dot(nv, row3(s.view, i)));
-                let (fx, fy) = (row3(s.frame_x, i), row3(s.frame_y, i));
-                let ((c2, s2), _) = double_azimuth(nv, fx, fy);
-                let ((c2h, s2h), _) = double_azimuth(tilted(nv, cache.tilt_value[i]), fx, fy);
-                let specular = cache.specular_rgb[3 * i..3 * i + 3].iter().sum::<f32>() / 3.0;
-                let amplitude = -scale * rho_s * specular;
-                [amplitude * (c2h - c2), amplitude * (s2h - s2)]
-            })
-            .collect()
+        cache.off_axis
     }
 
     /// Backward of [`Radiance::shade`]: parameter gradients into `grad`; returns the gradients
@@ -457,7 +525,6 @@ impl Radiance {
         let mut d_diffuse_raw = vec![0f32; 3 * n];
         let mut d_specular_raw = vec![0f32; 3 * n];
         let mut d_cos = vec![0f32; n];
-        let mut d_tilt = vec![0f32; if cache.tilt_value.is_empty() { 0 } else { 3 * n }];
         let scale = self.specular_polarization(params);
         let mut d_scale = 0f32;
         for i in 0..n {
@@ -498,9 +565,6 @@ impl Radiance {
             for k in 0..3 {
                 d_normal[3 * i + k] += g_c2 * dc2[k] + g_s2 * ds2[k] + d_m[k] * across - tilt[k] * m_along;
             }
-            if !cache.tilt_value.is_empty() {
-                d_tilt[3 * i..3 * i + 3].copy_from_slice(&[0, 1, 2].map(|k| d_m[k] - m_along * nv[k]));
-            }
         }
         if let Some(p) = self.polarization {
             grad[p] += d_scale;
@@ -517,21 +581,15 @@ impl Radiance {
         if !cache.diffuse_only {
             let d_in = self.specular.backward(params, &cache.specular, &d_specular_raw, grad);
             let width = IDE_WIDTH + 1 + f;
-            // The tilt network reads the same encoding and n . v.
-            let d_tilt_in = match &self.tilt {
-                Some(tilt) => tilt.backward(params, &cache.tilt, &d_tilt, grad),
-                None => vec![0f32; n * (IDE_WIDTH + 1)],
-            };
             let mut d_rough_raw = vec![0f32; n];
             for i in 0..n {
                 let row = &d_in[width * i..width * (i + 1)];
-                let tilt_row = &d_tilt_in[(IDE_WIDTH + 1) * i..(IDE_WIDTH + 1) * (i + 1)];
                 let (nv, v) = (row3(s.normals, i), row3(s.view, i));
                 let c = dot(nv, v);
                 let mut d_reflected = [0f32; 3];
                 let mut d_rough = 0f32;
                 for (k, (dw, dr)) in cache.ide_jacobian[i].iter().enumerate() {
-                    let d_value = row[k] + tilt_row[k];
+                    let d_value = row[k];
                     for a in 0..3 {
                         d_reflected[a] += d_value * dw[a];
                     }
@@ -540,7 +598,7 @@ impl Radiance {
                 let r = cache.roughness_value[i];
                 d_rough_raw[i] = d_rough * r * (1.0 - r);
                 // reflected = 2 c n - v, c = n . v (also a direct input).
-                let dc = row[IDE_WIDTH] + tilt_row[IDE_WIDTH] + 2.0 * dot(d_reflected, nv);
+                let dc = row[IDE_WIDTH] + 2.0 * dot(d_reflected, nv);
                 for a in 0..3 {
                     d_normal[3 * i + a] += 2.0 * c * d_reflected[a];
                 }
@@ -638,6 +696,7 @@ impl Model {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::pbrdf::cross;
     use crate::presets;
 
     /// `n` random unit vectors.
@@ -651,57 +710,118 @@ mod tests {
             .collect()
     }
 
+    /// `n` random shading samples: points, unit normals, features, views 17 to 69 degrees off
+    /// their normals in random azimuths, and each ray's Stokes frame.
+    struct Samples {
+        points: Vec<f32>,
+        normals: Vec<f32>,
+        features: Vec<f32>,
+        view: Vec<f32>,
+        frame_x: Vec<f32>,
+        frame_y: Vec<f32>,
+    }
+
+    impl Samples {
+        fn new(n: usize, features: usize, rng: &mut Rng) -> Self {
+            let points: Vec<f32> = (0..3 * n).map(|_| rng.next_f32() - 0.5).collect();
+            let normals = unit_vectors(n, rng);
+            let features: Vec<f32> = (0..n * features).map(|_| rng.normal()).collect();
+            let (mut view, mut frame_x, mut frame_y) = (Vec::new(), Vec::new(), Vec::new());
+            for nv in normals.chunks_exact(3) {
+                let nv = [nv[0], nv[1], nv[2]];
+                let u = [rng.normal(), rng.normal(), rng.normal()];
+                let along = dot(u, nv);
+                let t = [0, 1, 2].map(|k| u[k] - along * nv[k]);
+                let t = t.map(|x| x / dot(t, t).sqrt());
+                let angle = 0.3 + 0.9 * rng.next_f32();
+                let v = [0, 1, 2].map(|k| angle.cos() * nv[k] + angle.sin() * t[k]);
+                let a = if v[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
+                let along = dot(a, v);
+                let x = [0, 1, 2].map(|k| a[k] - along * v[k]);
+                let x = x.map(|c| c / dot(x, x).sqrt());
+                view.extend_from_slice(&v);
+                frame_x.extend_from_slice(&x);
+                frame_y.extend_from_slice(&cross(v, x));
+            }
+            Self { points, normals, features, view, frame_x, frame_y }
+        }
+
+        /// The samples with the given normals.
+        fn input<'a>(&'a self, normals: &'a [f32]) -> ShadingInput<'a> {
+            ShadingInput {
+                points: &self.points,
+                normals,
+                features: &self.features,
+                view: &self.view,
+                frame_x: &self.frame_x,
+                frame_y: &self.frame_y,
+            }
+        }
+    }
+
+    #[test]
+    fn the_lit_tilt_reflects_the_view_into_the_light_weighted_mean_of_the_lobe() {
+        // A von Mises-Fisher lobe of concentration 1 / rough about the mirror direction under
+        // light exp(a . w), integrated over the sphere (Fibonacci points): its light-weighted mean
+        // direction is where the tilted half vector must reflect the view.
+        let n = [0.0, 0.0, 1.0];
+        for (v, rough, a) in [
+            ([0.6f32, 0.0, 0.8], 0.05f32, [0.0f32, 2.0, 0.0]),
+            ([0.0, -0.8, 0.6], 0.1, [1.5, 0.0, 0.0]),
+            ([0.3, 0.4, 0.866], 0.02, [-3.0, 1.0, 0.5]),
+        ] {
+            let l = dot(v, v).sqrt();
+            let v = v.map(|x| x / l);
+            let c = dot(n, v);
+            let r = [0, 1, 2].map(|k| 2.0 * c * n[k] - v[k]);
+            // The light's gradient across r (its part along r changes no direction's weight
+            // relative to its neighbours' to first order, and the formula drops it).
+            let along = dot(a, r);
+            let a = [0, 1, 2].map(|k| a[k] - along * r[k]);
+            let count = 400_000;
+            let mut mean = [0f64; 3];
+            for i in 0..count {
+                let z = 1.0 - (2.0 * i as f64 + 1.0) / count as f64;
+                let phi = i as f64 * std::f64::consts::PI * (3.0 - 5f64.sqrt());
+                let s = (1.0 - z * z).sqrt();
+                let w = [s * phi.cos(), s * phi.sin(), z];
+                let e = |d: [f32; 3]| (0..3).map(|k| d[k] as f64 * w[k]).sum::<f64>();
+                let weight = ((e(r) - 1.0) / rough as f64 + e(a)).exp();
+                (0..3).for_each(|k| mean[k] += weight * w[k]);
+            }
+            let len = mean.iter().map(|x| x * x).sum::<f64>().sqrt();
+            let mean = mean.map(|x| (x / len) as f32);
+            let tilt = lit_tilt(n, v, r, rough, a);
+            assert!(dot(tilt, n).abs() < 1e-6, "the tilt lies across the normal");
+            let h = tilted(n, tilt);
+            let h_len = dot(h, h).sqrt();
+            let h = h.map(|x| x / h_len);
+            let hv = dot(h, v);
+            let reflected = [0, 1, 2].map(|k| 2.0 * hv * h[k] - v[k]);
+            let angle = dot(reflected, mean).clamp(-1.0, 1.0).acos().to_degrees();
+            let shift = dot(r, mean).clamp(-1.0, 1.0).acos().to_degrees();
+            assert!(shift > 3.0, "the light moves the lobe's mean by {shift} degrees");
+            assert!(angle < 0.02 * shift, "reflected {reflected:?}, lobe mean {mean:?} ({angle} degrees apart)");
+        }
+    }
+
     #[test]
     fn the_off_axis_part_is_what_the_tilt_adds_to_the_shaded_polarization() {
         let mut config = presets::model(Preset::Fast);
         config.grid = Some((4, 12, 8, 32));
         config.specular_tilt = true;
         let model = Model::new(config);
+        // Networks livelier than at their start, so that the specular light varies by direction.
         let mut params = model.init(3);
+        params[..model.variance].iter_mut().for_each(|p| *p *= 3.0);
         let radiance = &model.radiance;
         let n = 64;
-        let mut rng = Rng::for_pixel(5, 0, 0);
-        let points: Vec<f32> = (0..3 * n).map(|_| rng.next_f32() - 0.5).collect();
-        let normals = unit_vectors(n, &mut rng);
-        let features: Vec<f32> = (0..n * model.config.features).map(|_| rng.normal()).collect();
-        // Views within 80 degrees of the normal, and each ray's Stokes frame.
-        let mut view = unit_vectors(n, &mut rng);
-        for i in 0..n {
-            let (nv, v) = ([0, 1, 2].map(|k| normals[3 * i + k]), [0, 1, 2].map(|k| view[3 * i + k]));
-            let w = [0, 1, 2].map(|k| nv[k] + 0.8 * v[k]);
-            let l = dot(w, w).sqrt();
-            view[3 * i..3 * i + 3].copy_from_slice(&w.map(|x| x / l));
-        }
-        let (mut frame_x, mut frame_y) = (Vec::new(), Vec::new());
-        for v in view.chunks_exact(3) {
-            let a = if v[0].abs() < 0.9 { [1.0, 0.0, 0.0] } else { [0.0, 1.0, 0.0] };
-            let along = dot(a, [v[0], v[1], v[2]]);
-            let x = [0, 1, 2].map(|k| a[k] - along * v[k]);
-            let l = dot(x, x).sqrt();
-            let x = x.map(|c| c / l);
-            frame_x.extend_from_slice(&x);
-            frame_y.extend_from_slice(&[
-                v[1] * x[2] - v[2] * x[1],
-                v[2] * x[0] - v[0] * x[2],
-                v[0] * x[1] - v[1] * x[0],
-            ]);
-        }
-        let input = ShadingInput {
-            points: &points,
-            normals: &normals,
-            features: &features,
-            view: &view,
-            frame_x: &frame_x,
-            frame_y: &frame_y,
-        };
-        // A fresh tilt network adds nothing.
-        let untilted = radiance.shade(&params, &input, false, None);
-        assert!(radiance.off_axis(&params, &input).iter().all(|d| *d == [0.0, 0.0]));
-        // A lively one: its output layer (zero at first, just before the variance) set.
-        let zero: Vec<usize> = (0..model.variance).rev().take_while(|&i| params[i] == 0.0).collect();
-        for &i in &zero {
-            params[i] = 0.5 * rng.normal();
-        }
+        let samples = Samples::new(n, model.config.features, &mut Rng::for_pixel(5, 0, 0));
+        let input = samples.input(&samples.normals);
+        // The same parameters shaded by NeRSP's lobe, polarized about the normal.
+        let untilted = Model::new(ModelConfig { specular_tilt: false, ..model.config.clone() });
+        assert_eq!(untilted.layout.len(), model.layout.len(), "the tilt has no parameters of its own");
+        let untilted = untilted.radiance.shade(&params, &input, false, None);
         let tilted = radiance.shade(&params, &input, false, None);
         let off_axis = radiance.off_axis(&params, &input);
         let mut largest = 0f32;
@@ -715,5 +835,43 @@ mod tests {
             }
         }
         assert!(largest > 1e-2, "the tilt should turn some samples' polarization: {largest}");
+    }
+
+    #[test]
+    fn the_normals_gradient_holds_with_the_tilt_held() {
+        let mut config = presets::model(Preset::Fast);
+        config.grid = Some((4, 12, 8, 32));
+        config.specular_tilt = true;
+        config.diffuse_transmission = true;
+        let model = Model::new(config);
+        let params = model.init(7);
+        let radiance = &model.radiance;
+        let n = 32;
+        let mut rng = Rng::for_pixel(9, 0, 0);
+        let samples = Samples::new(n, model.config.features, &mut rng);
+        let normals = samples.normals.clone();
+        let weights: Vec<f32> = (0..STOKES * n).map(|_| rng.normal()).collect();
+        let shaded = |normals: &[f32], tilts: &[[f32; 3]]| {
+            let stokes = radiance.shade_tilted(&params, &samples.input(normals), false, None, Some(tilts));
+            stokes.iter().zip(&weights).map(|(a, b)| (a * b) as f64).sum::<f64>()
+        };
+        let s = samples.input(&normals);
+        // Tilts of about 15 degrees, held as the backward pass holds them.
+        let tilts: Vec<[f32; 3]> = (0..n).map(|_| [0, 1, 2].map(|_| 0.15 * rng.normal())).collect();
+        let mut cache = ShadingCache::default();
+        radiance.shade_tilted(&params, &s, false, Some(&mut cache), Some(&tilts));
+        let mut grad = vec![0f32; params.len()];
+        let (d_normal, _) = radiance.shade_backward(&params, &s, &cache, &weights, &mut grad);
+        let h = 1e-3;
+        let mut worst = 0f64;
+        for j in 0..3 * n {
+            let (mut up, mut down) = (normals.clone(), normals.clone());
+            up[j] += h;
+            down[j] -= h;
+            let numeric = (shaded(&up, &tilts) - shaded(&down, &tilts)) / (2.0 * h as f64);
+            let scale = numeric.abs().max(d_normal[j].abs() as f64).max(1e-2);
+            worst = worst.max((numeric - d_normal[j] as f64).abs() / scale);
+        }
+        assert!(worst < 2e-2, "largest relative error of d/dn: {worst}");
     }
 }

@@ -75,9 +75,10 @@ pub struct ReconOptions {
     #[cfg_attr(feature = "clap", arg(long, value_name = "DEGREES"))]
     pub tangent_robust_angle: Option<f32>,
     /// Let the specular lobe's AoP turn off the normal (a rough lobe lit from one side is
-    /// polarized about its lit half vectors), learned by a small network of the reflected
-    /// direction, and take that predicted turn out of each view's AoP before the tangent loss;
-    /// default: the preset's (off: NeRSP's lobe, polarized about the normal).
+    /// polarized about its lit half vectors, which lean towards the light that the specular
+    /// network puts beside the mirror direction), and take that predicted turn out of each
+    /// view's AoP before the tangent loss; default: the preset's (off: NeRSP's lobe, polarized
+    /// about the normal).
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub specular_tilt: Option<bool>,
     /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the

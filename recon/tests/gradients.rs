@@ -187,16 +187,8 @@ fn small_model() -> (Model, Vec<f32>) {
     config.color_hidden = 16;
     config.learned_polarization = true;
     config.diffuse_transmission = true;
-    config.specular_tilt = true;
     let model = Model::new(config);
     let mut params = model.init(11);
-    // The tilt network's output layer starts at zero, just before the variance (with its hidden
-    // layer's biases): a lively tilt instead.
-    let zero: Vec<usize> = (0..model.variance).rev().take_while(|&i| params[i] == 0.0).collect();
-    assert!(zero.len() >= 3 * (16 + 1), "{}", zero.len());
-    for (&i, v) in zero.iter().zip(random(zero.len(), 13, 0.3)) {
-        params[i] = v;
-    }
     // Inside its clamp, where the straight-through gradient is the derivative.
     params[model.radiance.polarization_parameter().expect("learned")] = 0.6;
     // Lively grid features, so that their gradients are measurable.
