@@ -7,7 +7,7 @@ use rmvp_dataset::rng::Rng;
 use rmvp_recon::engine::encoding::{ide, IDE_WIDTH};
 use rmvp_recon::engine::{Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
 use rmvp_recon::model::{Model, ShadingCache, ShadingInput, STOKES};
-use rmvp_recon::pbrdf::{degrees, double_azimuth};
+use rmvp_recon::pbrdf::{cross, degrees, double_azimuth};
 use rmvp_recon::presets::{self, Preset};
 use rmvp_recon::volume::{sample_depths, Forward, Ray, RayGrad, Sampling};
 
@@ -233,7 +233,7 @@ fn shading_networks_and_pbrdf() {
         let frame_y = unit(
             view.chunks(3)
                 .zip(frame_x.chunks(3))
-                .flat_map(|(d, x)| [d[1] * x[2] - d[2] * x[1], d[2] * x[0] - d[0] * x[2], d[0] * x[1] - d[1] * x[0]])
+                .flat_map(|(d, x)| cross([d[0], d[1], d[2]], [x[0], x[1], x[2]]))
                 .collect(),
         );
         let w = random(STOKES * n, 25, 1.0);
