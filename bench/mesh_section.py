@@ -8,7 +8,8 @@ leaves a concavity uncarved, or a thin part too thick, which a normal error only
 Draws the vertices within --width of the plane through the origin across --axis (x, y or z),
 the true mesh in black dots, each reconstruction in its own colour (blue, red, green, orange,
 purple), in the scene's unit-sphere coordinates, cropped to what is drawn, with a legend
-below; the labels (separated by semicolons) default to the reconstructions' folder names. Reads binary little-endian or ASCII PLY whose vertex properties start with x, y, z.
+below; the labels (separated by semicolons) default to the reconstructions' folder names.
+Reads binary little-endian or ASCII PLY with x, y, z among its vertex properties.
 
 Needs numpy and OpenCV (`scripts/install-system-deps.sh bench`).
 """
@@ -26,8 +27,8 @@ TYPES = {"float": "<f4", "float32": "<f4", "double": "<f8", "uchar": "u1", "uint
          "int8": "i1", "short": "<i2", "ushort": "<u2", "int": "<i4", "int32": "<i4", "uint": "<u4"}
 
 
-def read_positions(path):
-    """The vertex positions of a PLY file (n x 3)."""
+def read_vertex_table(path):
+    """The vertex element of a PLY file as a numpy structured array, one field per property."""
     raw = open(path, "rb").read()
     end = raw.index(b"end_header") + len(b"end_header")
     end = raw.index(b"\n", end) + 1
@@ -43,12 +44,18 @@ def read_positions(path):
             if words[1] == "list":
                 raise ValueError(f"{path}: list property in the vertex element")
             props.append((words[2], TYPES[words[1]]))
-    if [name for name, _ in props[:3]] != ["x", "y", "z"]:
-        raise ValueError(f"{path}: vertex properties do not start with x, y, z")
+    dtype = np.dtype(props)
     if any("ascii" in line for line in header):
         rows = raw[end:].decode("ascii").splitlines()[:count]
-        return np.array([[float(v) for v in row.split()[:3]] for row in rows])
-    table = np.frombuffer(raw[end:], dtype=np.dtype(props), count=count)
+        return np.array([tuple(float(v) for v in row.split()[: len(props)]) for row in rows], dtype=dtype)
+    if len(raw) - end < dtype.itemsize * count:
+        raise ValueError(f"{path}: {count} vertices declared, the file is shorter")
+    return np.frombuffer(raw[end:], dtype=dtype, count=count)
+
+
+def read_positions(path):
+    """The vertex positions of a PLY file (n x 3)."""
+    table = read_vertex_table(path)
     return np.stack([table["x"], table["y"], table["z"]], axis=-1).astype(np.float64)
 
 

@@ -39,6 +39,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from aop_residuals import DOP_BINS, residual_degrees, view_geometry  # noqa: E402
+from mesh_section import read_vertex_table  # noqa: E402
 
 ETA = 1.5
 # Views whose true normal is this close to the ray have no reliable azimuth (8-bit normals).
@@ -46,14 +47,13 @@ MAX_COS_VIEW = 0.95
 
 
 def read_vertices(path):
-    """Positions, normals and GGX roughness of a binary little-endian PLY of float vertices."""
-    raw = open(path, "rb").read()
-    end = raw.index(b"end_header\n") + len(b"end_header\n")
-    header = raw[:end].decode().splitlines()
-    count = int(next(line for line in header if line.startswith("element vertex")).split()[-1])
-    names = [line.split()[-1] for line in header if line.startswith("property float")]
-    table = np.frombuffer(raw[end : end + 4 * count * len(names)], dtype="<f4").reshape(count, len(names))
-    return table[:, 0:3].astype(np.float64), table[:, 3:6].astype(np.float64), table[:, names.index("roughness_0")]
+    """Positions, normals and GGX roughness of the vertices of a PLY file."""
+    table = read_vertex_table(path)
+
+    def columns(*names):
+        return np.stack([table[name] for name in names], axis=-1).astype(np.float64)
+
+    return columns("x", "y", "z"), columns("nx", "ny", "nz"), table["roughness_0"]
 
 
 def roughness_image(vertices, camera, shape):
