@@ -388,6 +388,8 @@ impl Radiance {
                 .map(|&x| sigmoid(x))
                 .collect();
             let mut input = Vec::with_capacity(n * (IDE_WIDTH + 1 + f));
+            // Each sample's reflected view and n . v, which the tilt reads again.
+            let mut reflections = Vec::with_capacity(if self.tilt { n } else { 0 });
             for i in 0..n {
                 let (nv, v) = (row3(s.normals, i), row3(s.view, i));
                 let c = dot(nv, v);
@@ -397,6 +399,9 @@ impl Radiance {
                 input.push(c);
                 input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
                 ide_jacobian.push(jac);
+                if self.tilt {
+                    reflections.push((reflected, c));
+                }
             }
             specular_rgb = self
                 .specular
@@ -407,7 +412,7 @@ impl Radiance {
             if self.tilt {
                 tilt_value = match tilts {
                     Some(tilts) => tilts.to_vec(),
-                    None => self.lit_tilts(params, s, &roughness_value, &specular_rgb),
+                    None => self.lit_tilts(params, s, &reflections, &roughness_value, &specular_rgb),
                 };
             }
         }
@@ -458,17 +463,21 @@ impl Radiance {
     /// applied. The gradient comes from forward differences of the network (channel mean) along
     /// the three axes, projected across `r`; the tilt is held fixed in the backward pass, so it
     /// follows the light the radiance fits and no loss can bend it to excuse a wrong normal.
-    fn lit_tilts(&self, params: &[f32], s: &ShadingInput, roughness: &[f32], specular_rgb: &[f32]) -> Vec<[f32; 3]> {
+    /// `reflections` holds each sample's `r` and `n . v`, as the specular network read them.
+    fn lit_tilts(
+        &self,
+        params: &[f32],
+        s: &ShadingInput,
+        reflections: &[([f32; 3], f32)],
+        roughness: &[f32],
+        specular_rgb: &[f32],
+    ) -> Vec<[f32; 3]> {
         const STEP: f32 = 0.02;
         let n = s.points.len() / 3;
         let f = self.features;
         let row3 = |a: &[f32], i: usize| [a[3 * i], a[3 * i + 1], a[3 * i + 2]];
         let mut input = Vec::with_capacity(3 * n * (IDE_WIDTH + 1 + f));
-        let mut reflected = Vec::with_capacity(n);
-        for i in 0..n {
-            let (nv, v) = (row3(s.normals, i), row3(s.view, i));
-            let c = dot(nv, v);
-            let r = [0, 1, 2].map(|k| 2.0 * c * nv[k] - v[k]);
+        for (i, &(r, c)) in reflections.iter().enumerate() {
             for axis in 0..3 {
                 let mut w = r;
                 w[axis] += STEP;
@@ -477,12 +486,11 @@ impl Radiance {
                 input.push(c);
                 input.extend_from_slice(&s.features[f * i..f * (i + 1)]);
             }
-            reflected.push(r);
         }
         let shifted = self.specular.evaluate(params, &input, 3 * n, None);
         (0..n)
             .map(|i| {
-                let (nv, v, r) = (row3(s.normals, i), row3(s.view, i), reflected[i]);
+                let (nv, v, r) = (row3(s.normals, i), row3(s.view, i), reflections[i].0);
                 let here = specular_rgb[3 * i..3 * i + 3].iter().sum::<f32>() / 3.0;
                 let rows = &shifted[9 * i..9 * (i + 1)];
                 let g = [0, 1, 2].map(|a| {
