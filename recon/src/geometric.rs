@@ -36,14 +36,14 @@ pub fn aop_weight(dop: f32, reliability: f32) -> f32 {
     d2 / (d2 + reliability * reliability)
 }
 
-/// DoP of pixel `k`'s channel-mean Stokes target, as its AoP is taken (the targets' common
-/// scale cancels).
 /// Pixel `k`'s measured `(S0, S1, S2)`, each the mean of its three colour channels.
 fn channel_means(view: &TrainView, k: usize) -> [f32; 3] {
     let stokes = &view.stokes[9 * k..9 * k + 9];
     [0, 1, 2].map(|s| stokes[3 * s..3 * s + 3].iter().sum::<f32>() / 3.0)
 }
 
+/// DoP of pixel `k`'s channel-mean Stokes target, as its AoP is taken (the targets' common
+/// scale cancels).
 fn pixel_dop(view: &TrainView, k: usize) -> f32 {
     let [s0, s1, s2] = channel_means(view, k);
     polarization::dop(s0, s1, s2)
