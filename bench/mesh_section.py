@@ -41,8 +41,8 @@ def read_vertex_table(path):
             if in_vertex:
                 count = int(words[2])
         elif words[:1] == ["property"] and in_vertex:
-            if words[1] == "list":
-                raise ValueError(f"{path}: list property in the vertex element")
+            if words[1] not in TYPES:
+                raise ValueError(f"{path}: vertex property {words[-1]} of type {words[1]}, not a scalar")
             props.append((words[2], TYPES[words[1]]))
     dtype = np.dtype(props)
     if any("ascii" in line for line in header):
@@ -77,11 +77,9 @@ def main():
     image = np.full((SIZE, SIZE, 3), 255, np.uint8)
 
     def draw(points, colour, radius):
-        near = points[np.abs(points[:, across]) < args.width]
-        for p in near:
+        for p in points[np.abs(points[:, across]) < args.width]:
             centre = (int(SIZE / 2 + SCALE * p[u]), int(SIZE / 2 - SCALE * p[v]))
             cv2.circle(image, centre, radius, colour, -1)
-        return len(near)
 
     entries = []
     for i, path in enumerate(args.reconstructions):
