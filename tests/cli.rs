@@ -410,9 +410,15 @@ fn recon_resumes_where_it_stopped_and_reports_bad_input() {
     assert_eq!(log.lines().count(), 6);
     assert_eq!(log, std::fs::read_to_string(stopped.join("log.jsonl")).unwrap());
     assert_eq!(std::fs::read(straight.join("mesh.ply")).unwrap(), std::fs::read(stopped.join("mesh.ply")).unwrap());
-    for file in ["comparison.png", "normals/006.png", "normals/006.exr", "stokes/000_s2.exr"] {
+    for file in ["comparison.png", "residuals.png", "normals/006.png", "normals/006.exr", "stokes/000_s2.exr"] {
         assert!(stopped.join(file).is_file(), "{file}");
     }
+    // The residuals' figures: one record per training view, over pixels the surface covers.
+    let residuals: Vec<serde_json::Value> =
+        serde_json::from_str(&std::fs::read_to_string(stopped.join("residuals.json")).unwrap()).unwrap();
+    let views: Vec<&str> = residuals.iter().map(|r| r["view"].as_str().unwrap()).collect();
+    assert_eq!(views, ["000", "001", "002", "003", "004", "005"]);
+    assert!(residuals.iter().all(|r| r["pixels"].as_u64().unwrap() > 0), "{residuals:?}");
 
     // The learned polarization scale: logged at every step, printed at the end, and moved by
     // training from its start at 1 (the dielectric).

@@ -84,6 +84,16 @@ pub fn dop(s0: f32, s1: f32, s2: f32) -> f32 {
     }
 }
 
+/// An AoP is compared with another (captured against rendered, a model against its input) only
+/// where the reference light is at least this polarized: below it the AoP is mostly noise.
+pub const AOP_MIN_DOP: f32 = 0.05;
+
+/// The smallest angle between two AoPs, in degrees (an AoP is periodic in 180 degrees).
+pub fn aop_difference_deg(a: f32, b: f32) -> f32 {
+    let d = (a - b).rem_euclid(PI);
+    d.min(PI - d).to_degrees()
+}
+
 /// AoP and DoP of one image row from its S0, S1, S2 rows of `channels` interleaved channels,
 /// each pixel's channel-mean Stokes vector (the NeRSP definition for RGB). Contiguous,
 /// branch-free loops: both vectorise.
@@ -132,6 +142,12 @@ pub fn diffuse_dop(theta: f32, eta: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn aop_differences_wrap_at_180_degrees() {
+        assert!((aop_difference_deg(0.01, PI - 0.01) - 0.02f32.to_degrees()).abs() < 1e-3);
+        assert!((aop_difference_deg(0.5, 0.2) - 0.3f32.to_degrees()).abs() < 1e-3);
+    }
 
     #[test]
     fn atan2_matches_std_everywhere() {

@@ -50,6 +50,22 @@ pub fn gray_ramp(image: &Image<f32>, lo: f32, hi: f32) -> Image<u8> {
     to_rgb(&image.channel(0), |v| ((v - lo) / (hi - lo) * 255.0).clamp(0.0, 255.0).round() as u8)
 }
 
+/// A signed single-channel value as colour: positive red, negative blue, its brightness
+/// `|v| / scale` (full at `scale` and beyond), zero black; pixels outside `mask` are black.
+pub fn signed_picture(image: &Image<f32>, scale: f32, mask: Option<&Image<u8>>) -> Image<u8> {
+    let scale = scale.max(1e-12);
+    let mut out = Image::new(image.width(), image.height(), 3);
+    for (i, px) in out.data_mut().chunks_exact_mut(3).enumerate() {
+        if mask.is_some_and(|m| m.data()[i * m.channels()] == 0) {
+            continue;
+        }
+        let v = image.data()[i * image.channels()];
+        let level = ((v.abs() / scale).min(1.0) * 255.0).round() as u8;
+        px[if v >= 0.0 { 0 } else { 2 }] = level;
+    }
+    out
+}
+
 /// HSV (hue in turns, saturation and value in `[0, 1]`) to 8-bit RGB.
 pub fn hsv_to_rgb(hue: f32, saturation: f32, value: f32) -> [u8; 3] {
     let h = hue.rem_euclid(1.0) * 6.0;
@@ -141,6 +157,14 @@ mod tests {
         assert_eq!(hsv_to_rgb(1.0 / 3.0, 1.0, 1.0), [0, 255, 0]);
         assert_eq!(hsv_to_rgb(2.0 / 3.0, 1.0, 1.0), [0, 0, 255]);
         assert_eq!(hsv_to_rgb(0.5, 0.0, 0.5), [128, 128, 128]);
+    }
+
+    #[test]
+    fn signed_pictures_are_red_above_zero_blue_below_and_black_outside_the_mask() {
+        let values = Image::from_vec(4, 1, 1, vec![0.5, -1.0, 0.25, 3.0]).unwrap();
+        let mask = Image::from_vec(4, 1, 1, vec![255, 255, 255, 0]).unwrap();
+        let picture = signed_picture(&values, 0.5, Some(&mask));
+        assert_eq!(picture.data(), &[255, 0, 0, 0, 0, 255, 128, 0, 0, 0, 0, 0]);
     }
 
     #[test]

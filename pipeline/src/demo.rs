@@ -28,6 +28,7 @@ use rmvp_capture::simulator::{SimulatedCamera, SimulatedScene, SimulatorOptions}
 use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::io::png;
 use rmvp_dataset::layout::{nersp, read_scene, write_scene, Layout};
+use rmvp_dataset::polarization;
 use rmvp_dataset::progress::progress_bar;
 use rmvp_dataset::session::{SessionManifest, StokesUnit};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, downsample, gray_ramp, preview, quantile};
@@ -37,7 +38,6 @@ use rmvp_recon::presets::Preset;
 use rmvp_recon::reconstruct::{reconstruct, MESH};
 use rmvp_render::envmap::procedural_image;
 use serde::{Deserialize, Serialize};
-use std::f32::consts::PI;
 use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 
@@ -77,8 +77,6 @@ pub const DEMO_VIEWS: usize = 6;
 pub const DEMO_OBJECT: &str = "spot";
 /// Dark frames averaged at the start of the session (the simulated rig's lens cap).
 pub const DEMO_DARK_FRAMES: usize = 4;
-/// AoP is compared where the rendered light is at least this polarized.
-pub const AOP_MIN_DOP: f32 = 0.05;
 /// S0 is compared where the rendered S0 (green) is at least this bright.
 pub const S0_MIN: f32 = 0.05;
 /// AoP errors above this many degrees are white in the contact sheet.
@@ -183,7 +181,7 @@ pub struct DemoReport {
     pub ground_truth: String,
     /// The dataset.
     pub dataset: DatasetSummary,
-    /// The dataset's AoP against the rendered AoP, degrees (where DoP > [`AOP_MIN_DOP`]).
+    /// The dataset's AoP against the rendered AoP, degrees (where DoP > [`AOP_MIN_DOP`](polarization::AOP_MIN_DOP)).
     pub aop_error_deg: ErrorQuantiles,
     /// The dataset's S0 against the rendered S0, relative (where S0 > [`S0_MIN`]).
     pub s0_rel_error: ErrorQuantiles,
@@ -386,7 +384,7 @@ fn reconstruct_and_evaluate(dataset: &Scene, truth: &Scene, dir: &Path, options:
 
 /// Captured polarization against the rendered truth.
 pub struct PolarizationComparison {
-    /// AoP errors in degrees over object pixels with DoP > [`AOP_MIN_DOP`].
+    /// AoP errors in degrees over object pixels with DoP > [`AOP_MIN_DOP`](polarization::AOP_MIN_DOP).
     pub aop_errors_deg: Vec<f32>,
     /// Relative S0 errors (green) over object pixels with S0 > [`S0_MIN`].
     pub s0_rel_errors: Vec<f32>,
@@ -407,8 +405,8 @@ pub fn compare_polarization(truth: &Scene, captured: &Scene, stokes_gain: f32) -
             if mask.data()[k] == 0 {
                 continue;
             }
-            if tdop.data()[k] > AOP_MIN_DOP {
-                let e = aop_difference_deg(caop.data()[k], taop.data()[k]);
+            if tdop.data()[k] > polarization::AOP_MIN_DOP {
+                let e = polarization::aop_difference_deg(caop.data()[k], taop.data()[k]);
                 aop_errors_deg.push(e);
                 error_map.data_mut()[k] = e;
             }
@@ -431,21 +429,9 @@ pub fn compare_polarization(truth: &Scene, captured: &Scene, stokes_gain: f32) -
     PolarizationComparison { aop_errors_deg, s0_rel_errors, tiles }
 }
 
-/// Smallest angle between two AoPs, in degrees (AoP is periodic in 180 degrees).
-pub fn aop_difference_deg(a: f32, b: f32) -> f32 {
-    let d = (a - b).rem_euclid(PI);
-    d.min(PI - d).to_degrees()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn aop_differences_wrap_at_180_degrees() {
-        assert!((aop_difference_deg(0.01, PI - 0.01) - 0.02f32.to_degrees()).abs() < 1e-3);
-        assert!((aop_difference_deg(0.5, 0.2) - 0.3f32.to_degrees()).abs() < 1e-3);
-    }
 
     #[test]
     fn reports_read_back_what_they_wrote() {

@@ -11,7 +11,7 @@
 //! - [`data`]: the training set in the unit sphere; [`train`]: steps and checkpoints;
 //! - [`extract`]: marching tetrahedra (the SDF on the CPU or, with the `cuda` feature, by
 //!   the kernels of `cuda` on a GPU); [`output`]: normal maps and re-rendered Stokes where
-//!   the surface is (forward only);
+//!   the surface is (forward only); [`residuals`]: the model's Stokes against its input;
 //!   [`reconstruct`]: a whole run in a folder.
 
 #![warn(missing_docs)]
@@ -32,6 +32,7 @@ pub mod output;
 pub mod pbrdf;
 pub mod presets;
 pub mod reconstruct;
+pub mod residuals;
 pub mod samples;
 pub mod trace;
 pub mod train;

@@ -96,8 +96,8 @@ pub struct ReconOptions {
     /// driver and NVRTC; training stays on the CPU).
     #[cfg_attr(feature = "clap", arg(long, value_enum, default_value_t = Device::Cpu))]
     pub mesh_device: Device,
-    /// Write the mesh alone (no normal maps, Stokes or comparison picture): a dataset's
-    /// reference shape.
+    /// Write the mesh alone (no normal maps, Stokes, comparison or residual pictures): a
+    /// dataset's reference shape.
     #[cfg_attr(feature = "clap", arg(long))]
     pub mesh_only: bool,
     /// Iterations between checkpoints.

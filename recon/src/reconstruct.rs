@@ -1,16 +1,19 @@
 //! A whole reconstruction run in an output folder: training with checkpoints and a loss log
-//! (resumable), then the mesh, normal maps, re-rendered Stokes and a comparison picture.
+//! (resumable), then the mesh, normal maps, re-rendered Stokes, a comparison picture and the
+//! residuals of the model against its input.
 
 use crate::data::TrainingSet;
 use crate::extract::{extract_mesh, CpuSdf, Device};
 use crate::options::{ReconOptions, RunControl};
 use crate::output::{render_view, SurfaceGuide};
+use crate::residuals::view_residuals;
 use crate::train::{StepReport, Trainer};
 use crate::{Error, Result};
 use rmvp_dataset::io::atomic::write_bytes_atomically;
+use rmvp_dataset::io::json::write_json;
 use rmvp_dataset::io::{exr, png};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, normal_picture, preview};
-use rmvp_dataset::{Mesh, Scene, Split};
+use rmvp_dataset::{Image, Mesh, Scene, Split};
 use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::Path;
@@ -21,6 +24,12 @@ pub const CHECKPOINT: &str = "checkpoint.bin";
 pub const LOG: &str = "log.jsonl";
 /// The extracted surface, world frame.
 pub const MESH: &str = "mesh.ply";
+/// Per training view: input and rendered S0 and AoP, and the normals.
+pub const COMPARISON: &str = "comparison.png";
+/// Per training view: the residuals of S0, S1, S2 and the AoP ([`crate::residuals`]).
+pub const RESIDUALS_PICTURE: &str = "residuals.png";
+/// Per training view: the residuals' figures ([`crate::residuals::ViewResiduals`]).
+pub const RESIDUALS: &str = "residuals.json";
 
 /// Train on `scene` into `out`, calling `on_step` after every iteration, then write the results.
 /// The call ends early, checkpointed and without results (the returned trainer has not
@@ -138,7 +147,19 @@ pub fn write_mesh(trainer: &Trainer, out: &Path, mesh_resolution: usize, device:
     Ok(mesh)
 }
 
-/// Mesh, normal maps (every view), re-rendered Stokes (training views) and `comparison.png`.
+/// 255 where both masks are set (one channel; the first channel of each is read).
+fn both_set(a: &Image<u8>, b: &Image<u8>) -> Image<u8> {
+    let data = a
+        .data()
+        .chunks_exact(a.channels())
+        .zip(b.data().chunks_exact(b.channels()))
+        .map(|(x, y)| if x[0] != 0 && y[0] != 0 { 255 } else { 0 })
+        .collect();
+    Image::from_vec(a.width(), a.height(), 1, data).expect("equal sizes")
+}
+
+/// Mesh, normal maps (every view), re-rendered Stokes (training views), [`COMPARISON`] and the
+/// residuals ([`RESIDUALS_PICTURE`], [`RESIDUALS`]).
 pub fn write_results(
     trainer: &Trainer,
     scene: &Scene,
@@ -152,7 +173,7 @@ pub fn write_results(
     for d in [&normals_dir, &stokes_dir] {
         std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;
     }
-    let mut tiles = Vec::new();
+    let (mut tiles, mut residual_tiles, mut residuals) = (Vec::new(), Vec::new(), Vec::new());
     for view in &scene.views {
         let train = view.split == Split::Train;
         let r = render_view(trainer, &view.camera, &guide, train);
@@ -173,10 +194,19 @@ pub fn write_results(
                 aop_picture(&aop_out, &dop_out, Some(&r.mask)),
                 normal_picture(&r.normals),
             ]);
+            let compared = match mask {
+                Some(m) => both_set(m, &r.mask),
+                None => r.mask.clone(),
+            };
+            let (figures, pictures) = view_residuals(&view.name, input, stokes, &compared);
+            residuals.push(figures);
+            residual_tiles.extend(pictures);
         }
     }
     if !tiles.is_empty() {
-        png::write_png_u8(&out.join("comparison.png"), &contact_sheet(&tiles, 5))?;
+        png::write_png_u8(&out.join(COMPARISON), &contact_sheet(&tiles, 5))?;
+        png::write_png_u8(&out.join(RESIDUALS_PICTURE), &contact_sheet(&residual_tiles, 4))?;
+        write_json(&out.join(RESIDUALS), &residuals)?;
     }
     Ok(())
 }

@@ -13,7 +13,7 @@ use std::path::PathBuf;
 pub struct Args {
     /// Scene folder (any layout) with Stokes images and masks.
     scene: PathBuf,
-    /// Output folder: mesh.ply, normals/, stokes/, comparison.png, log.jsonl, checkpoint.bin.
+    /// Output folder: mesh.ply, normals/, stokes/, comparison.png, residuals.png, residuals.json, log.jsonl, checkpoint.bin.
     #[arg(short, long)]
     output: PathBuf,
     /// The reconstruction's options.
