@@ -51,7 +51,8 @@ pub fn gray_ramp(image: &Image<f32>, lo: f32, hi: f32) -> Image<u8> {
 }
 
 /// A signed single-channel value as colour: positive red, negative blue, its brightness
-/// `|v| / scale` (full at `scale` and beyond), zero black; pixels outside `mask` are black.
+/// `|v| / scale` sRGB-encoded as a preview is (full at `scale` and beyond), zero black; pixels
+/// outside `mask` are black.
 pub fn signed_picture(image: &Image<f32>, scale: f32, mask: Option<&Image<u8>>) -> Image<u8> {
     let scale = scale.max(1e-12);
     let mut out = Image::new(image.width(), image.height(), 3);
@@ -60,7 +61,7 @@ pub fn signed_picture(image: &Image<f32>, scale: f32, mask: Option<&Image<u8>>) 
             continue;
         }
         let v = image.data()[i * image.channels()];
-        let level = ((v.abs() / scale).min(1.0) * 255.0).round() as u8;
+        let level = srgb_encode(v.abs() / scale);
         px[if v >= 0.0 { 0 } else { 2 }] = level;
     }
     out
@@ -164,7 +165,7 @@ mod tests {
         let values = Image::from_vec(4, 1, 1, vec![0.5, -1.0, 0.25, 3.0]).unwrap();
         let mask = Image::from_vec(4, 1, 1, vec![255, 255, 255, 0]).unwrap();
         let picture = signed_picture(&values, 0.5, Some(&mask));
-        assert_eq!(picture.data(), &[255, 0, 0, 0, 0, 255, 128, 0, 0, 0, 0, 0]);
+        assert_eq!(picture.data(), &[255, 0, 0, 0, 0, 255, 188, 0, 0, 0, 0, 0]);
     }
 
     #[test]
