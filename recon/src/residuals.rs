@@ -38,12 +38,6 @@ pub struct ViewResiduals {
     pub aop_pixels: usize,
 }
 
-/// Each pixel's mean over the image's channels.
-fn channel_means(image: &Image<f32>) -> Vec<f32> {
-    let c = image.channels();
-    image.data().chunks_exact(c).map(|p| p.iter().sum::<f32>() / c as f32).collect()
-}
-
 /// The residuals of `model` against `input` (Stokes of the same size) over the pixels where
 /// `mask` is set, and their pictures: S0, S1 and S2 ([`signed_picture`], full red or blue at
 /// half the input's 99th-percentile magnitude of that component) and the AoP (grey from 0 to
@@ -52,8 +46,8 @@ fn channel_means(image: &Image<f32>) -> Vec<f32> {
 pub fn view_residuals(view: &str, input: &Stokes, model: &Stokes, mask: &Image<u8>) -> (ViewResiduals, [Image<u8>; 4]) {
     let (w, h) = (mask.width(), mask.height());
     let inside: Vec<bool> = mask.data().chunks_exact(mask.channels()).map(|m| m[0] != 0).collect();
-    let [i0, i1, i2] = [&input.s0, &input.s1, &input.s2].map(channel_means);
-    let [m0, m1, m2] = [&model.s0, &model.s1, &model.s2].map(channel_means);
+    let means = |s: &Stokes| [&s.s0, &s.s1, &s.s2].map(|image| image.channel_mean().into_vec());
+    let ([i0, i1, i2], [m0, m1, m2]) = (means(input), means(model));
     let pixels = inside.iter().filter(|&&m| m).count();
     let mean_over = |v: &mut dyn Iterator<Item = f32>| v.sum::<f32>() / pixels.max(1) as f32;
     let mean_s0 = mean_over(&mut inside.iter().zip(&i0).filter(|(m, _)| **m).map(|(_, &v)| v));
