@@ -45,33 +45,32 @@ pub struct ViewResiduals {
 /// compare).
 pub fn view_residuals(view: &str, input: &Stokes, model: &Stokes, mask: &Image<u8>) -> (ViewResiduals, [Image<u8>; 4]) {
     let (w, h) = (mask.width(), mask.height());
-    let inside: Vec<bool> = mask.data().chunks_exact(mask.channels()).map(|m| m[0] != 0).collect();
+    let compared: Vec<usize> =
+        mask.data().chunks_exact(mask.channels()).enumerate().filter(|(_, m)| m[0] != 0).map(|(k, _)| k).collect();
     let means = |s: &Stokes| [&s.s0, &s.s1, &s.s2].map(|image| image.channel_mean().into_vec());
     let ([i0, i1, i2], [m0, m1, m2]) = (means(input), means(model));
-    let pixels = inside.iter().filter(|&&m| m).count();
-    let mean_over = |v: &mut dyn Iterator<Item = f32>| v.sum::<f32>() / pixels.max(1) as f32;
-    let mean_s0 = mean_over(&mut inside.iter().zip(&i0).filter(|(m, _)| **m).map(|(_, &v)| v));
+    let pixels = compared.len();
+    let mean_over =
+        |value: &dyn Fn(usize) -> f32| compared.iter().map(|&k| value(k)).sum::<f32>() / pixels.max(1) as f32;
+    let mean_s0 = mean_over(&|k| i0[k]);
     let norm = if mean_s0 > 0.0 { 1.0 / mean_s0 } else { 0.0 };
 
     let mut tiles: Vec<Image<u8>> = Vec::with_capacity(4);
     let mut relative_mae = [0f32; 3];
     for (k, (input_k, model_k)) in [(&i0, &m0), (&i1, &m1), (&i2, &m2)].into_iter().enumerate() {
         let residual: Vec<f32> = model_k.iter().zip(input_k).map(|(m, i)| m - i).collect();
-        relative_mae[k] =
-            norm * mean_over(&mut inside.iter().zip(&residual).filter(|(m, _)| **m).map(|(_, r)| r.abs()));
-        let magnitudes: Vec<f32> =
-            inside.iter().zip(input_k.iter()).filter(|(m, _)| **m).map(|(_, v)| v.abs()).collect();
+        relative_mae[k] = norm * mean_over(&|p| residual[p].abs());
+        let magnitudes: Vec<f32> = compared.iter().map(|&p| input_k[p].abs()).collect();
         let scale = quantile(&magnitudes, 0.99) / 2.0;
         let image = Image::from_vec(w, h, 1, residual).expect("the mask's size");
         tiles.push(signed_picture(&image, scale, Some(mask)));
     }
-    let relative_bias_s0 =
-        norm * mean_over(&mut inside.iter().zip(m0.iter().zip(&i0)).filter(|(m, _)| **m).map(|(_, (m, i))| m - i));
+    let relative_bias_s0 = norm * mean_over(&|k| m0[k] - i0[k]);
 
     let mut aop_errors = Vec::new();
     let mut aop_map = Image::new(w, h, 1);
     let mut unpolarized = Vec::new();
-    for k in (0..w * h).filter(|&k| inside[k]) {
+    for &k in &compared {
         if dop(i0[k], i1[k], i2[k]) > AOP_MIN_DOP {
             let e = aop_difference_deg(aop(m1[k], m2[k]), aop(i1[k], i2[k]));
             aop_map.data_mut()[k] = e;
