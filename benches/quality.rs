@@ -16,7 +16,8 @@
 //! views (the held-out six stay the same). `--curve` also measures the model at those
 //! iterations of the run (its mesh; training minutes so far): quality against time.
 //! `--error-maps` writes each view's normal error map (`normal_errors/<view>_normal_error.png`)
-//! beside the run's mesh. Our scenes are simulated once into
+//! beside the run's mesh; every run keeps its whole evaluation there (`evaluation.json`, with
+//! the error by the input's DoP, the true roughness and the depth complexity). Our scenes are simulated once into
 //! `target/tmp/bench-quality/<WxH>/<scene>` (`<WxH>-<N>views` for other than 6 training views)
 //! and reused; runs of the Mitsuba scenes go into `target/tmp/bench-quality/mitsuba/<scene>`;
 //! each row is kept in `results.jsonl` there. The bunny comes from `$RMVP_MESHES` or
@@ -89,6 +90,7 @@ fn measure(
     if error_maps {
         evaluation.write_error_maps(&dir.join("normal_errors")).expect("error maps");
     }
+    evaluation.write(&dir.join("evaluation.json")).expect("evaluation record");
     let row = Row {
         set: run.set,
         scene: run.scene.to_string(),

@@ -1,7 +1,9 @@
 //! A whole evaluation of a predicted mesh: surface metrics against the ground-truth mesh and,
 //! with a scene, the normal angular error in each of its ground-truth views, stored as one
-//! record (`rmvp eval --json`, the demo's report, batch results) with per-view error maps.
+//! record (`rmvp eval --json`, the demo's report, batch results) with per-view error maps and
+//! the error binned by what may cause it ([`crate::breakdown`]).
 
+use crate::breakdown::{error_breakdown, ErrorBreakdown};
 use crate::normals::{normal_errors, split_mean_deg, ViewNormalError};
 use crate::surface::{surface_metrics, SurfaceMetrics, SurfaceOptions};
 use crate::Result;
@@ -27,16 +29,25 @@ pub struct Evaluation {
     /// Per view, in scene order (views without ground-truth normals are skipped).
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub normal_views: Vec<ViewNormalError>,
+    /// The normal error by the input's DoP, the true roughness and the depth complexity, when
+    /// a scene was given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub breakdown: Option<ErrorBreakdown>,
 }
 
 /// Compare `pred` with `gt` and, when `scene` is given, with its ground-truth normal maps.
 pub fn evaluate(pred: &Mesh, gt: &Mesh, scene: Option<&Scene>, options: &SurfaceOptions) -> Result<Evaluation> {
     let surface = surface_metrics(pred, gt, options)?;
     let normals = scene.map(|scene| normal_errors(pred, scene)).transpose()?;
+    let breakdown = match (&normals, scene) {
+        (Some(normals), Some(scene)) => Some(error_breakdown(&normals.views, scene, gt)?),
+        _ => None,
+    };
     Ok(Evaluation {
         surface,
         normal_mae_deg: normals.as_ref().map(|n| n.mean_mae_deg),
         normal_views: normals.map(|n| n.views).unwrap_or_default(),
+        breakdown,
     })
 }
 

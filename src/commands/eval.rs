@@ -81,5 +81,8 @@ pub fn run(args: Args) -> Result<()> {
             println!("normal MAE    {mae:>7.3} deg  mean over the {split} views");
         }
     }
+    for line in evaluation.breakdown.iter().flat_map(|b| b.lines()) {
+        println!("normal MAE {line}");
+    }
     Ok(())
 }
