@@ -1,7 +1,7 @@
 //! A whole evaluation of a predicted mesh: surface metrics against the ground-truth mesh and,
 //! with a scene, the normal angular error in each of its ground-truth views, stored as one
-//! record (`rmvp eval --json`, the demo's report, batch results) with per-view error maps and
-//! the error binned by what may cause it ([`crate::breakdown`]).
+//! record (`rmvp eval --json`, batch results; the demo's report keeps its summary figures) with
+//! per-view error maps and the error binned by what may cause it ([`crate::breakdown`]).
 
 use crate::breakdown::{error_breakdown, ErrorBreakdown};
 use crate::normals::{normal_errors, split_mean_deg, ViewNormalError};
