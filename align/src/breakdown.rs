@@ -16,6 +16,7 @@ use crate::Result;
 use rayon::prelude::*;
 use rmvp_dataset::{Mesh, Scene};
 use rmvp_render::math::Vec3;
+use rmvp_render::object::roughness_property;
 use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::Object;
 use serde::{Deserialize, Serialize};
@@ -141,7 +142,7 @@ impl Accumulator {
 /// input's DoP, the true roughness and the depth complexity of `gt`, the ground-truth mesh in
 /// the scene's world frame.
 pub fn error_breakdown(views: &[ViewNormalError], scene: &Scene, gt: &Mesh) -> Result<ErrorBreakdown> {
-    let has_roughness = ["roughness_0", "roughness"].iter().any(|name| gt.property(name).is_some());
+    let has_roughness = roughness_property(gt).is_some();
     let truth = Object::new(gt, Interface::Dielectric(1.5), Lobes::Plastic)?;
     let empty = || [&DOP_EDGES[..], &ROUGHNESS_EDGES, &CROSSING_EDGES].map(Accumulator::new);
     let [dop, roughness, crossings] = views
@@ -166,7 +167,7 @@ pub fn error_breakdown(views: &[ViewNormalError], scene: &Scene, gt: &Mesh) -> R
                 if has_roughness {
                     acc[1].add(first.surface.alpha as f64, error);
                 }
-                acc[2].add(crossings_along(&truth, origin, direction) as f64, error);
+                acc[2].add(crossings_after(&truth, origin, direction, first.p) as f64, error);
             }
             acc
         })
@@ -179,17 +180,17 @@ pub fn error_breakdown(views: &[ViewNormalError], scene: &Scene, gt: &Mesh) -> R
     Ok(ErrorBreakdown { by_dop: listed(&dop), by_roughness: listed(&roughness), by_crossings: listed(&crossings) })
 }
 
-/// How many times the ray from `origin` along the unit `direction` crosses `object`'s surface
-/// (at most [`MAX_CROSSINGS`]).
-fn crossings_along(object: &Object, origin: Vec3, direction: Vec3) -> u32 {
-    let mut count = 0;
-    let mut from = origin;
+/// How many times the ray from `origin` along the unit `direction` crosses `object`'s surface,
+/// its first crossing at `first` included (at most [`MAX_CROSSINGS`]).
+fn crossings_after(object: &Object, origin: Vec3, direction: Vec3, first: Vec3) -> u32 {
+    let mut count = 1;
+    let mut hit = first;
     while count < MAX_CROSSINGS {
-        let Some(hit) = object.intersect(from, direction) else { break };
-        count += 1;
         // Past the hit by a relative step, so the same triangle is not found again.
-        let travelled = (hit.p - origin).length();
-        from = hit.p + direction * (1e-4 * travelled).max(1e-6);
+        let travelled = (hit - origin).length();
+        let Some(next) = object.intersect(hit + direction * (1e-4 * travelled).max(1e-6), direction) else { break };
+        count += 1;
+        hit = next.p;
     }
     count
 }

@@ -7,12 +7,19 @@ use crate::bvh::{Bvh, Hit};
 use crate::math::Vec3;
 use crate::pbrdf::{Interface, Lobes, Surface};
 use crate::{Error, Result};
+use rmvp_dataset::mesh::VertexProperty;
 use rmvp_dataset::{Image, Mesh};
 
 /// Default albedo where the mesh has no colours.
 pub const DEFAULT_ALBEDO: [f32; 3] = [0.75, 0.45, 0.3];
 /// Default GGX roughness where the mesh has none.
 pub const DEFAULT_ROUGHNESS: f32 = 0.1;
+
+/// A mesh's per-vertex GGX roughness, if it has one: its `roughness_0` property (Mitsuba's
+/// name) or `roughness`.
+pub fn roughness_property(mesh: &Mesh) -> Option<&VertexProperty> {
+    ["roughness_0", "roughness"].iter().find_map(|name| mesh.property(name))
+}
 
 /// One mesh of a scene with its material.
 #[derive(Clone, Debug)]
@@ -136,8 +143,7 @@ impl Object {
             object.face_part.extend(std::iter::repeat_n(index as u16, mesh.faces.len()));
             let n = mesh.positions.len();
             object.albedo.extend(mesh.colors().unwrap_or_else(|| vec![DEFAULT_ALBEDO; n]));
-            let roughness = ["roughness_0", "roughness"].iter().find_map(|name| mesh.property(name));
-            match roughness {
+            match roughness_property(mesh) {
                 Some(p) => object.roughness.extend(p.values.iter().map(|&v| v as f32)),
                 None => object.roughness.extend(std::iter::repeat_n(DEFAULT_ROUGHNESS, n)),
             }
