@@ -17,9 +17,9 @@
 //! iterations of the run (its mesh; training minutes so far): quality against time.
 //! `--error-maps` writes each view's normal error map (`normal_errors/<view>_normal_error.png`)
 //! beside the run's mesh; every run keeps its whole evaluation there (`evaluation.json`, with
-//! the error by the input's DoP, the true roughness and the depth complexity). Our scenes are simulated once into
-//! `target/tmp/bench-quality/<WxH>/<scene>` (`<WxH>-<N>views` for other than 6 training views)
-//! and reused; runs of the Mitsuba scenes go into `target/tmp/bench-quality/mitsuba/<scene>`;
+//! the error by the input's DoP, the true roughness and the depth complexity). Our scenes are
+//! simulated once into `target/tmp/bench-quality/<WxH>/<scene>` (`<WxH>-<N>views` for other
+//! than 6 training views) and reused; runs of the Mitsuba scenes go into `target/tmp/bench-quality/mitsuba/<scene>`;
 //! each row is kept in `results.jsonl` there. The bunny comes from `$RMVP_MESHES` or
 //! `../shared/meshes`.
 //! Variants not run by default, each the default with one change (`VARIANTS`): `near-surface`
