@@ -14,13 +14,15 @@ use crate::{Error, Result};
 use aravis_sys as ffi;
 use rmvp_calib::board::BoardOptions;
 use rmvp_calib::lab::{calibration_cameras, calibration_parts, lab_environment, LabOptions};
+use rmvp_dataset::rng::Rng;
 use rmvp_dataset::{Camera, Mesh, Stokes};
 use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::rig::{framing_distance, rig_intrinsics, RigKind};
 use rmvp_render::{default_mesh, render_view, EnvMap, Object, Part, Settings};
+use std::collections::HashMap;
 use std::ffi::{c_void, CString};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -253,10 +255,24 @@ impl FakeCameraPtr {
     }
 }
 
+/// What a frame is exposed under: the pose, exposure (us), gain (dB, as bits), bits per pixel
+/// and whether the lens is capped.
+type FrameKey = (usize, u32, u32, u32, bool);
+
+/// The seed of the sensor noise of frames exposed under `key`: frames are numbered within their
+/// key, so a session's noise depends on the frames it takes under each setting, not on how many
+/// the free-running stream sent before (which depends on timing).
+fn noise_seed(seed: u64, key: FrameKey) -> u64 {
+    let (pose, exposure_us, gain_bits, bits, capped) = key;
+    let stream = pose as u32 | (bits << 24) | (u32::from(capped) << 31);
+    let mut rng = Rng::for_pixel(seed, stream, u64::from(exposure_us) | (u64::from(gain_bits) << 32));
+    u64::from(rng.next_u32()) << 32 | u64::from(rng.next_u32())
+}
+
 /// The last frame's inputs and their noise-free electrons (recomputed when any changes).
 #[derive(Default)]
 struct ExposureCache {
-    key: Option<(usize, u32, u32, u32, bool)>,
+    key: Option<FrameKey>,
     electrons: Option<Arc<rmvp_dataset::Image<f32>>>,
     noise_free_bytes: Option<Arc<Vec<u8>>>,
 }
@@ -267,7 +283,8 @@ struct Shared {
     scene: SimulatedScene,
     poses: Mutex<Vec<Option<Arc<Stokes>>>>,
     exposure: Mutex<ExposureCache>,
-    frames: AtomicU32,
+    /// Frames streamed so far under each key (the number of the next one).
+    frames: Mutex<HashMap<FrameKey, u32>>,
     noise: bool,
     seed: u64,
     stop: AtomicBool,
@@ -300,7 +317,12 @@ impl Shared {
         let capped = self.camera.read(register::LENS_CAP) != 0;
         let sensor = SimulatedScene::sensor(exposure_us as f64, gain_db as f64, format.bits);
         let key = (pose, exposure_us, gain_db.to_bits(), format.bits as u32, capped);
-        let frame = self.frames.fetch_add(1, Ordering::Relaxed);
+        let frame = {
+            let mut frames = self.frames.lock().expect("frame numbers");
+            let next = frames.entry(key).or_insert(0);
+            *next += 1;
+            *next - 1
+        };
         let mut cache = self.exposure.lock().expect("exposure cache");
         if cache.key != Some(key) {
             let stokes = self.poses.lock().expect("poses")[pose.min(self.scene.cameras.len() - 1)].clone();
@@ -319,7 +341,7 @@ impl Shared {
         let noise_free = !self.noise;
         drop(cache);
         let model = if noise_free { sensor.noise_free() } else { sensor };
-        let raw = model.digitize(&electrons, self.seed, frame);
+        let raw = model.digitize(&electrons, noise_seed(self.seed, key), frame);
         let bytes = Arc::new(raw.encode(format).expect("bits match the format"));
         if noise_free {
             self.exposure.lock().expect("exposure cache").noise_free_bytes = Some(bytes.clone());
@@ -487,7 +509,7 @@ impl SimulatedCamera {
             scene,
             poses: Mutex::new(vec![None; n]),
             exposure: Mutex::default(),
-            frames: AtomicU32::new(0),
+            frames: Mutex::default(),
             noise: config.noise,
             seed: config.seed,
             stop: AtomicBool::new(false),

@@ -105,3 +105,31 @@ fn negotiation_falls_back_to_bayer_names() {
         .to_string();
     assert!(err.contains("does not offer pixel format BayerRGPolarized12p"), "{err}");
 }
+
+/// `count` frames of one acquisition at `exposure_us`.
+fn burst(camera: &mut CameraDevice, exposure_us: f64, count: usize) -> Vec<Vec<u8>> {
+    camera.configure(&CameraOptions { exposure_us, ..CameraOptions::default() }).unwrap();
+    camera.start().unwrap();
+    let frames = (0..count).map(|_| next_frame(camera)).collect();
+    camera.stop().unwrap();
+    frames
+}
+
+#[test]
+fn the_sensor_noise_depends_on_the_frames_taken_at_a_setting_not_on_the_stream_before() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let noisy = |serial: &str| SimulatorOptions { noise: true, ..config(serial, &[]) };
+    let direct = {
+        let sim = SimulatedCamera::start(&noisy("RMVPNOISE01")).unwrap();
+        let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+        burst(&mut camera, 15_000.0, 2)
+    };
+    let after_another_setting = {
+        let sim = SimulatedCamera::start(&noisy("RMVPNOISE02")).unwrap();
+        let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+        burst(&mut camera, 8_000.0, 3);
+        burst(&mut camera, 15_000.0, 2)
+    };
+    assert_ne!(direct[0], direct[1], "two frames of one setting have their own noise");
+    assert!(direct == after_another_setting, "the same setting's frames differ after other frames were streamed");
+}
