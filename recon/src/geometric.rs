@@ -11,6 +11,7 @@
 use crate::data::{TrainView, TrainingSet};
 use crate::model::{Model, ShadingInput};
 use crate::pbrdf::{cross, dot};
+use crate::samples::FieldSamples;
 use crate::trace::{sphere_trace, TraceLimits, TraceRay};
 use crate::volume::unit_sphere_span;
 use rmvp_dataset::polarization;
@@ -133,7 +134,8 @@ struct Query {
 /// view that sees it (in front of the camera, inside the image and the view's mask, facing the
 /// camera and not occluded by the SDF), each weighted by [`aop_weight`] of its pixel's DoP.
 /// When the model's specular lobe tilts ([`crate::model::Radiance::off_axis`]), the part of
-/// each view's `(S1, S2)` that the tilt predicts is taken away before the AoP gives the tangents.
+/// each view's `(S1, S2)` that the tilt predicts, times the point's [`correction_share`], is
+/// taken away before the AoP gives the tangents.
 pub fn tangents(
     set: &TrainingSet,
     reliability: f32,
@@ -208,8 +210,27 @@ pub fn aop_without(aop: f32, strength: f32, off_axis: [f32; 2]) -> f32 {
     0.5 * (strength * s - off_axis[1]).atan2(strength * c - off_axis[0])
 }
 
+/// Finite-difference step (unit sphere) of the SDF Laplacian that [`correction_share`] reads:
+/// wider than the hash grid's finest cells, so that it measures the shape, not the grid's ripple.
+const CURVATURE_STEP: f32 = 0.03;
+
+/// The SDF Laplacian (twice the mean curvature, unit sphere) at which [`correction_share`] is
+/// one half: that of a sphere of radius 0.5 (a sphere's is `2 / r`).
+const HALF_SHARE_LAPLACIAN: f32 = 4.0;
+
+/// The share of the predicted off-axis polarization taken out of the AoPs at a point whose SDF
+/// has Laplacian `laplacian`: `l^2 / (l^2 + HALF_SHARE_LAPLACIAN^2)`. The prediction reads the
+/// light's gradient from the specular network along the reflected direction, which is fitted
+/// only where neighbouring points reflect different directions; on a flat face each view
+/// reflects one direction, the gradient there is the network's guess, and a correction made of
+/// it turns sound AoPs (on the Mitsuba fandisk's faces, `docs/benchmarks.md`).
+pub fn correction_share(laplacian: f32) -> f32 {
+    let l2 = laplacian * laplacian;
+    l2 / (l2 + HALF_SHARE_LAPLACIAN * HALF_SHARE_LAPLACIAN)
+}
+
 /// The model's off-axis `(S1, S2)` ([`crate::model::Radiance::off_axis`]) at each query's point,
-/// seen from its view with the given normal.
+/// seen from its view with the given normal, scaled by the point's [`correction_share`].
 fn predicted_off_axis(
     model: &Model,
     params: &[f32],
@@ -221,10 +242,11 @@ fn predicted_off_axis(
     if queries.is_empty() {
         return Vec::new();
     }
+    let at_points = FieldSamples::infer(model, params, level_weight, points.concat(), CURVATURE_STEP);
+    let f = at_points.features.len() / points.len();
     let flat: Vec<f32> = queries.iter().flat_map(|q| points[q.point]).collect();
-    let field = model.field.infer(params, &flat, level_weight);
-    let width = model.field.outputs();
-    let features: Vec<f32> = field.chunks_exact(width).flat_map(|row| row[1..].iter().copied()).collect();
+    let features: Vec<f32> =
+        queries.iter().flat_map(|q| at_points.features[f * q.point..f * (q.point + 1)].iter().copied()).collect();
     let normals: Vec<f32> = queries.iter().flat_map(|q| normalize(normals[q.point])).collect();
     let view: Vec<f32> = queries.iter().flat_map(|q| q.dir).collect();
     let frame_x: Vec<f32> = queries.iter().flat_map(|q| q.frame[1]).collect();
@@ -237,12 +259,18 @@ fn predicted_off_axis(
         frame_x: &frame_x,
         frame_y: &frame_y,
     };
-    model.radiance.off_axis(params, &input)
+    let mut off_axis = model.radiance.off_axis(params, &input);
+    for (o, q) in off_axis.iter_mut().zip(queries) {
+        let share = correction_share(at_points.laplacians[q.point]);
+        *o = o.map(|x| x * share);
+    }
+    off_axis
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::model::Model;
 
     #[test]
     fn taking_the_off_axis_part_away_returns_the_aop_of_the_rest() {
@@ -256,6 +284,67 @@ mod tests {
         let aop = aop_without(measured, s1.hypot(s2), off_axis);
         assert!((aop - on).abs() < 1e-5, "{} vs 30", aop.to_degrees());
         assert!((aop_without(measured, s1.hypot(s2), [0.0, 0.0]) - measured).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_correction_is_halved_on_a_sphere_of_radius_one_half_and_gone_on_a_plane() {
+        assert_eq!(correction_share(0.0), 0.0);
+        assert!((correction_share(2.0 / 0.5) - 0.5).abs() < 1e-6);
+        assert_eq!(correction_share(-4.0), correction_share(4.0), "a concave sphere as a convex one");
+        assert!(correction_share(2.0 / 0.1) > 0.95);
+    }
+
+    #[test]
+    fn each_view_is_corrected_by_the_share_of_its_own_point() {
+        let mut config = crate::presets::model(crate::presets::Preset::Fast);
+        config.grid = Some((4, 12, 8, 32));
+        config.specular_tilt = true;
+        let model = Model::new(config);
+        // Networks perturbed from their start, so that the specular light varies by direction
+        // and the field's curvature from point to point.
+        let mut params = model.init(3);
+        let mut rng = rmvp_dataset::rng::Rng::for_pixel(7, 0, 0);
+        params[..model.variance].iter_mut().for_each(|p| *p += 0.1 * rng.normal());
+        let levels = vec![1.0; model.field.levels()];
+        let points = [[0.45, 0.1, 0.0], [0.0, -0.2, 0.5]];
+        let normals = [[1.0, 0.1, 0.0], [0.0, -0.3, 1.0]];
+        let query = |point: usize, dir: [f32; 3]| {
+            let dir = normalize(dir);
+            let fx = normalize(cross([0.0, 1.0, 0.0], dir));
+            Query {
+                point,
+                view: 0,
+                pixel: 0,
+                origin: points[point],
+                dir,
+                exit: 1.0,
+                frame: [dir.map(|x| -x), fx, cross(dir, fx)],
+            }
+        };
+        let queries = [query(1, [0.2, 0.1, 1.0]), query(0, [1.0, 0.3, 0.2]), query(1, [-0.4, 0.0, 1.0])];
+        let corrected =
+            predicted_off_axis(&model, &params, &levels, &points, &normals, &queries.iter().collect::<Vec<_>>());
+        let mut shares = Vec::new();
+        for (q, got) in queries.iter().zip(&corrected) {
+            // The same query alone, its field read at its point, without the share.
+            let field = FieldSamples::infer(&model, &params, &levels, points[q.point].to_vec(), CURVATURE_STEP);
+            let input = ShadingInput {
+                points: &points[q.point],
+                normals: &normalize(normals[q.point]),
+                features: &field.features,
+                view: &q.dir,
+                frame_x: &q.frame[1],
+                frame_y: &q.frame[2],
+            };
+            let whole = model.radiance.off_axis(&params, &input)[0];
+            let share = correction_share(field.laplacians[0]);
+            assert!(whole[0].hypot(whole[1]) > 1e-4, "the lobe tilts: {whole:?}");
+            for k in 0..2 {
+                assert!((got[k] - share * whole[k]).abs() < 1e-6, "{got:?} against {share} x {whole:?}");
+            }
+            shares.push(share);
+        }
+        assert!((shares[0] - shares[1]).abs() > 0.01, "the two points' shares differ: {shares:?}");
     }
 
     #[test]
