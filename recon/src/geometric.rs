@@ -243,7 +243,7 @@ fn predicted_off_axis(
         return Vec::new();
     }
     let at_points = FieldSamples::infer(model, params, level_weight, points.concat(), CURVATURE_STEP);
-    let f = at_points.features.len() / points.len();
+    let f = model.config.features;
     let flat: Vec<f32> = queries.iter().flat_map(|q| points[q.point]).collect();
     let features: Vec<f32> =
         queries.iter().flat_map(|q| at_points.features[f * q.point..f * (q.point + 1)].iter().copied()).collect();
