@@ -162,8 +162,10 @@ pub struct Trainer {
 }
 
 impl Trainer {
-    /// A fresh run.
-    pub fn new(config: TrainConfig, set: TrainingSet) -> Self {
+    /// A fresh run. Without the photometric cue the specular lobe's tilt is dropped: it is read
+    /// from the specular network, which nothing else fits, so each AoP is taken as measured.
+    pub fn new(mut config: TrainConfig, set: TrainingSet) -> Self {
+        config.model.specular_tilt &= config.photometric;
         let model = Model::new(config.model.clone());
         let params = model.init(config.seed);
         let adam = Adam::new(params.len());

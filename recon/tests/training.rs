@@ -219,3 +219,24 @@ fn unusable_inputs_are_refused_by_kind() {
     scene.views.iter_mut().for_each(|v| v.split = Split::Eval);
     assert!(matches!(TrainingSet::from_scene(&scene, 8), Err(Error::NoTrainingViews)));
 }
+
+#[test]
+fn without_the_photometric_cue_the_tangent_loss_takes_each_aop_as_measured() {
+    // The lobe's tilt is read from the specular network, which only the photometric cue fits:
+    // a geometric-only run with the tilt asked for trains exactly as one without it.
+    let scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
+    let run = |tilt: bool| {
+        let mut config = small_config(20);
+        config.batch_rays = 32;
+        config.photometric = false;
+        config.model.specular_tilt = tilt;
+        let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
+        let mut trainer = Trainer::new(config, set);
+        for _ in 0..6 {
+            trainer.step();
+        }
+        assert!(trainer.iteration > trainer.config.diffuse_only, "the geometric loss has started");
+        trainer.params
+    };
+    assert!(run(true) == run(false), "the untrained specular network turned the AoPs");
+}
