@@ -78,8 +78,9 @@ pub struct ReconOptions {
     /// polarized about its lit half vectors, which lean towards the light that the specular
     /// network puts beside the mirror direction), and take that predicted turn out of each
     /// view's AoP before the tangent loss, in full where the surface is curved and less towards
-    /// flat faces, where the light's gradient is unknown; default: the preset's (off: NeRSP's
-    /// lobe, polarized about the normal).
+    /// flat faces, where the light's gradient is unknown; default: the preset's (on in fast; off
+    /// in dense and paper: NeRSP's lobe, polarized about the normal). Without the photometric
+    /// cue nothing fits the specular network it is read from, and the lobe stays untilted.
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub specular_tilt: Option<bool>,
     /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the
