@@ -27,6 +27,15 @@ pub struct Tangents {
     pub weight: f32,
 }
 
+/// What the geometric cue reads at one surface point.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointTangents {
+    /// The tangents of every view that sees the point.
+    pub views: Vec<Tangents>,
+    /// The point's [`correction_share`] of its SDF's curvature.
+    pub curvature_share: f32,
+}
+
 /// The weight of a view whose pixel has degree of polarization `dop`, for the reliability DoP
 /// `reliability` (the DoP at half weight; 0 weights every view fully).
 pub fn aop_weight(dop: f32, reliability: f32) -> f32 {
@@ -60,6 +69,20 @@ fn normalize(a: [f32; 3]) -> [f32; 3] {
 /// 0 for an angle of 0 (no robust term).
 pub fn robust_scale(angle: f32) -> f32 {
     (2.0 * angle.to_radians()).sin().powi(2) / 4.0
+}
+
+/// [`robust_scale`] `robust` gated by a point's [`correction_share`] `share`: `robust / share`,
+/// so that the term is robust at full scale only where the surface curves strongly and tends to
+/// NeRSP's plain term on a flat face. Where the surface curves, the AoPs stray from the
+/// normal's planes by what the model does not capture (the light's gradient across the lobe,
+/// interreflections); on a face, a view's AoP that disagrees with the others is the cue that
+/// turns the face (the Mitsuba fandisk, `docs/benchmarks.md`).
+pub fn curved_robust_scale(robust: f32, share: f32) -> f32 {
+    if robust > 0.0 {
+        robust / share.max(1e-6)
+    } else {
+        0.0
+    }
 }
 
 /// The loss `weight rho((n.t)^2 (n.t_hat)^2)` averaged over `views`, and its gradient with
@@ -135,7 +158,9 @@ struct Query {
 /// camera and not occluded by the SDF), each weighted by [`aop_weight`] of its pixel's DoP.
 /// When the model's specular lobe tilts ([`crate::model::Radiance::off_axis`]), the part of
 /// each view's `(S1, S2)` that the tilt predicts, times the point's [`correction_share`], is
-/// taken away before the AoP gives the tangents.
+/// taken away before the AoP gives the tangents. Each point's [`correction_share`] is returned
+/// with its tangents when the tilt or `curvature` asks for it (else 1).
+#[allow(clippy::too_many_arguments)]
 pub fn tangents(
     set: &TrainingSet,
     reliability: f32,
@@ -144,7 +169,8 @@ pub fn tangents(
     level_weight: &[f32],
     points: &[[f32; 3]],
     normals: &[[f32; 3]],
-) -> Vec<Vec<Tangents>> {
+    curvature: bool,
+) -> Vec<PointTangents> {
     let mut queries = Vec::new();
     for (pi, (&x, &n)) in points.iter().zip(normals).enumerate() {
         let world = set.frame.point_to_world(x);
@@ -176,12 +202,19 @@ pub fn tangents(
         queries.iter().map(|q| TraceRay { origin: q.origin, dir: q.dir, start: START, end: q.exit }).collect();
     let hits = sphere_trace(model, params, level_weight, &rays, VISIBILITY);
     let visible: Vec<&Query> = queries.iter().zip(&hits).filter(|(_, hit)| hit.is_none()).map(|(q, _)| q).collect();
-    let off_axis = if model.radiance.tilts() {
-        predicted_off_axis(model, params, level_weight, points, normals, &visible)
-    } else {
-        Vec::new()
+    let tilts = model.radiance.tilts();
+    let at_points =
+        (tilts || curvature).then(|| FieldSamples::infer(model, params, level_weight, points.concat(), CURVATURE_STEP));
+    let shares: Vec<f32> = match &at_points {
+        Some(field) => field.laplacians.iter().map(|&l| correction_share(l)).collect(),
+        None => vec![1.0; points.len()],
     };
-    let mut out = vec![Vec::new(); points.len()];
+    let off_axis = match &at_points {
+        Some(field) if tilts => predicted_off_axis(model, params, field, &shares, normals, &visible),
+        _ => Vec::new(),
+    };
+    let mut out: Vec<PointTangents> =
+        shares.into_iter().map(|curvature_share| PointTangents { views: Vec::new(), curvature_share }).collect();
     for (i, q) in visible.iter().enumerate() {
         let view = &set.views[q.view];
         let [d, fx, fy] = q.frame;
@@ -194,7 +227,7 @@ pub fn tangents(
         };
         let (s, c) = aop.sin_cos();
         let e = [0, 1, 2].map(|a| c * fx[a] + s * fy[a]);
-        out[q.point].push(Tangents {
+        out[q.point].views.push(Tangents {
             t: cross(d, e),
             t_hat: e,
             weight: aop_weight(pixel_dop(view, q.pixel), reliability),
@@ -230,21 +263,21 @@ pub fn correction_share(laplacian: f32) -> f32 {
 }
 
 /// The model's off-axis `(S1, S2)` ([`crate::model::Radiance::off_axis`]) at each query's point,
-/// seen from its view with the given normal, scaled by the point's [`correction_share`].
+/// seen from its view with the given normal, scaled by the point's share (its
+/// [`correction_share`]); `at_points` is the field at the points.
 fn predicted_off_axis(
     model: &Model,
     params: &[f32],
-    level_weight: &[f32],
-    points: &[[f32; 3]],
+    at_points: &FieldSamples,
+    shares: &[f32],
     normals: &[[f32; 3]],
     queries: &[&Query],
 ) -> Vec<[f32; 2]> {
     if queries.is_empty() {
         return Vec::new();
     }
-    let at_points = FieldSamples::infer(model, params, level_weight, points.concat(), CURVATURE_STEP);
     let f = model.config.features;
-    let flat: Vec<f32> = queries.iter().flat_map(|q| points[q.point]).collect();
+    let flat: Vec<f32> = queries.iter().flat_map(|q| q.origin).collect();
     let features: Vec<f32> =
         queries.iter().flat_map(|q| at_points.features[f * q.point..f * (q.point + 1)].iter().copied()).collect();
     let normals: Vec<f32> = queries.iter().flat_map(|q| normalize(normals[q.point])).collect();
@@ -261,8 +294,7 @@ fn predicted_off_axis(
     };
     let mut off_axis = model.radiance.off_axis(params, &input);
     for (o, q) in off_axis.iter_mut().zip(queries) {
-        let share = correction_share(at_points.laplacians[q.point]);
-        *o = o.map(|x| x * share);
+        *o = o.map(|x| x * shares[q.point]);
     }
     off_axis
 }
@@ -322,8 +354,10 @@ mod tests {
             }
         };
         let queries = [query(1, [0.2, 0.1, 1.0]), query(0, [1.0, 0.3, 0.2]), query(1, [-0.4, 0.0, 1.0])];
-        let corrected =
-            predicted_off_axis(&model, &params, &levels, &points, &normals, &queries.iter().collect::<Vec<_>>());
+        let at_points = FieldSamples::infer(&model, &params, &levels, points.concat(), CURVATURE_STEP);
+        let point_shares: Vec<f32> = at_points.laplacians.iter().map(|&l| correction_share(l)).collect();
+        let queries: Vec<&Query> = queries.iter().collect();
+        let corrected = predicted_off_axis(&model, &params, &at_points, &point_shares, &normals, &queries);
         let mut shares = Vec::new();
         for (q, got) in queries.iter().zip(&corrected) {
             // The same query alone, its field read at its point, without the share.
@@ -446,5 +480,24 @@ mod tests {
         // Near the planes the pull is the plain one; at the angle a quarter; at 30 degrees
         // (a stray AoP) under a twentieth.
         assert!(ratios[0] > 0.99 && (ratios[1] - 0.25).abs() < 1e-3 && ratios[2] < 0.05, "{ratios:?}");
+    }
+
+    #[test]
+    fn the_robust_term_is_plain_on_a_face_and_flattens_stray_aops_on_a_curved_surface() {
+        let d = [0.0, 0.0, 1.0];
+        let views = [view(d, [1.0, 0.0, 0.0])];
+        // A normal 30 degrees from the AoP's planes: a stray AoP.
+        let n = [30f32.to_radians().cos(), 30f32.to_radians().sin(), 0.0];
+        let c = robust_scale(20.0);
+        let (plain, _) = tangent_loss(n, &views, true, 0.0);
+        let on = |laplacian: f32| tangent_loss(n, &views, true, curved_robust_scale(c, correction_share(laplacian))).0;
+        // A face (no curvature): NeRSP's plain term.
+        assert!((on(0.0) - plain).abs() < 1e-4 * plain, "{} vs {plain}", on(0.0));
+        // A sphere of radius 0.1 (share near one): nearly the full robust term, well under the plain one.
+        let full = c * plain / (plain + c);
+        assert!((on(2.0 / 0.1) - full).abs() < 0.05 * full && full < 0.6 * plain, "{} vs {full}", on(2.0 / 0.1));
+        // In between, in between, and no robust scale stays the plain term at any curvature.
+        assert!(full < on(4.0) && on(4.0) < plain);
+        assert_eq!(curved_robust_scale(0.0, 0.5), 0.0);
     }
 }

@@ -69,9 +69,11 @@ pub struct ReconOptions {
     /// gradient).
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub tangent_azimuth_only: Option<bool>,
-    /// Make each view's AoP tangent term robust: a view whose AoP strays more than about this
-    /// many degrees from both of the normal's planes pulls less and less (Geman-McClure);
-    /// default: the preset's (0: NeRSP's plain term).
+    /// Make each view's AoP tangent term robust where the surface curves: a view whose AoP
+    /// strays more than about this many degrees from both of the normal's planes pulls less and
+    /// less (Geman-McClure), in full where the surface curves tightly, less on gentle curves,
+    /// not at all on a flat face; default: the preset's (20 in fast; 0, NeRSP's plain term, in
+    /// dense and paper).
     #[cfg_attr(feature = "clap", arg(long, value_name = "DEGREES"))]
     pub tangent_robust_angle: Option<f32>,
     /// Let the specular lobe's AoP turn off the normal (a rough lobe lit from one side is

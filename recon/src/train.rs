@@ -7,7 +7,7 @@
 
 use crate::data::TrainingSet;
 use crate::engine::{Adam, AdamConfig};
-use crate::geometric::{robust_scale, tangent_loss, tangents};
+use crate::geometric::{curved_robust_scale, robust_scale, tangent_loss, tangents};
 use crate::losses::{curvature, eikonal, l1, mask_bce, PerTerm, Term};
 use crate::model::{GridGradient, Model, ModelConfig, STOKES};
 use crate::options::ReconOptions;
@@ -51,7 +51,8 @@ pub struct TrainConfig {
     #[serde(default)]
     pub tangent_azimuth_only: bool,
     /// The AoP's distance from a normal's planes, degrees, beyond which a view's geometric term
-    /// stops growing (Geman-McClure on the term); 0 keeps NeRSP's plain term.
+    /// stops growing (Geman-McClure on the term) where the surface curves
+    /// ([`crate::geometric::curved_robust_scale`]); 0 keeps NeRSP's plain term.
     #[serde(default)]
     pub tangent_robust_angle: f32,
     /// Initial iterations with the diffuse lobe and S0 only, no geometric loss.
@@ -324,11 +325,20 @@ impl Trainer {
         if use_geometric && !surface.is_empty() {
             let points: Vec<[f32; 3]> = surface.iter().map(|s| s.1).collect();
             let normals: Vec<[f32; 3]> = surface.iter().map(|s| s.2).collect();
-            let views =
-                tangents(set, self.config.aop_reliability, &self.model, &self.params, level_weight, &points, &normals);
             let robust = robust_scale(self.config.tangent_robust_angle);
-            for ((r, _, n), ts) in surface.iter().zip(&views) {
-                let (loss, dn) = tangent_loss(*n, ts, self.config.tangent_azimuth_only, robust);
+            let found = tangents(
+                set,
+                self.config.aop_reliability,
+                &self.model,
+                &self.params,
+                level_weight,
+                &points,
+                &normals,
+                robust > 0.0,
+            );
+            for ((r, _, n), at) in surface.iter().zip(&found) {
+                let robust = curved_robust_scale(robust, at.curvature_share);
+                let (loss, dn) = tangent_loss(*n, &at.views, self.config.tangent_azimuth_only, robust);
                 sums.losses[Term::Geometric] += loss as f64 / norm.masked as f64;
                 grads[*r].normal = dn.map(|d| d * w[Term::Geometric] / norm.masked);
             }
