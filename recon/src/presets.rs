@@ -142,8 +142,8 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         // NeRSP's full gradient also tilts normals towards the cameras wherever an AoP strays
         // from the normal's planes (docs/reconstruction.md).
         tangent_azimuth_only: preset != Preset::Paper,
-        // Stray AoPs on curved surfaces pull less (docs/reconstruction.md); with the tilted
-        // lobe, as the curvature share is the tilt's.
+        // Stray AoPs on curved surfaces pull less (docs/reconstruction.md); the fast preset
+        // only, where it was measured (with the tilted lobe).
         tangent_robust_angle: if preset == Preset::Fast { TANGENT_ROBUST_ANGLE } else { 0.0 },
         diffuse_only: 1000.min(iterations / 10),
         margin: 8,
