@@ -263,6 +263,11 @@ fn plans_with_impossible_values_loops_or_too_many_tasks_are_refused_at_plan_time
             3,
             "the tangent term's robust angle must be a number of degrees from 0 to 45",
         ),
+        (
+            "options = { initial_radius = 1.5 }\n",
+            3,
+            "the initial sphere's radius must be a number between 0 and 1 (the unit sphere's)",
+        ),
         ("\n[evaluation]\nthreshold = nan\n", 0, "[evaluation] threshold must be a finite positive distance, not NaN"),
         ("\n[evaluation]\nmax_samples = 0\n", 0, "[evaluation] max_samples must be at least 1"),
     ] {

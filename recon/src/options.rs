@@ -85,6 +85,12 @@ pub struct ReconOptions {
     /// cue nothing fits the specular network it is read from, and the lobe stays untilted.
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub specular_tilt: Option<bool>,
+    /// Radius of the sphere the SDF starts from, in the scene's unit sphere; the surface grows
+    /// out of it to meet the masks, so a concavity the masks do not show (a bowl, a cup) opens
+    /// only where the start lies inside it; default: the preset's (0.2 in fast; NeuS's 0.5 in
+    /// dense and paper).
+    #[cfg_attr(feature = "clap", arg(long, value_name = "RADIUS"))]
+    pub initial_radius: Option<f32>,
     /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the
     /// intrinsics scaled); the outputs are written at the scene's size. The official code trains
     /// RMVP3D at 2 (612x512), PANDORA at 4.
@@ -127,6 +133,7 @@ impl Default for ReconOptions {
             tangent_azimuth_only: None,
             tangent_robust_angle: None,
             specular_tilt: None,
+            initial_radius: None,
             downscale: 1,
             seed: 0,
             mesh_res: 256,
@@ -173,6 +180,8 @@ impl ReconOptions {
             "the AoP's reliability DoP must be a number of at least 0"
         } else if self.tangent_robust_angle.is_some_and(|a| !(a.is_finite() && (0.0..=45.0).contains(&a))) {
             "the tangent term's robust angle must be a number of degrees from 0 to 45"
+        } else if self.initial_radius.is_some_and(|r| !(r.is_finite() && r > 0.0 && r < 1.0)) {
+            "the initial sphere's radius must be a number between 0 and 1 (the unit sphere's)"
         } else {
             return Ok(());
         };
@@ -243,6 +252,9 @@ impl ReconOptions {
         }
         if let Some(on) = self.specular_tilt {
             config.model.specular_tilt = on;
+        }
+        if let Some(radius) = self.initial_radius {
+            config.model.initial_radius = radius;
         }
         config
     }
