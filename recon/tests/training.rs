@@ -5,6 +5,7 @@ use nalgebra::Vector3;
 use rmvp_dataset::{Scene, Split};
 use rmvp_recon::data::TrainingSet;
 use rmvp_recon::extract::{extract_mesh, CpuSdf};
+use rmvp_recon::model::neus_initial_radius;
 use rmvp_recon::options::{ReconOptions, RunControl};
 use rmvp_recon::output::{render_view as render_outputs, SurfaceGuide};
 use rmvp_recon::presets::{self, Preset};
@@ -51,7 +52,11 @@ fn small_config(iterations: u32) -> TrainConfig {
 #[test]
 fn analytic_sphere_converges_to_the_sphere() {
     let scene = sphere_scene();
-    let config = small_config(300);
+    // From NeuS's start: the fast preset's smaller one needs more than 300 iterations to grow
+    // out where no silhouette bounds the surface (after 300, 2.5 % of the vertices lie up to
+    // 0.15 inside, on the sphere's underside).
+    let mut config = small_config(300);
+    config.model.initial_radius = neus_initial_radius();
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     let mut trainer = Trainer::new(config, set);
     while trainer.iteration < trainer.config.iterations {
@@ -66,7 +71,7 @@ fn analytic_sphere_converges_to_the_sphere() {
     let mean_error = radii.iter().map(|r| (r - RADIUS).abs()).sum::<f32>() / radii.len() as f32;
     let worst = radii.iter().map(|r| (r - RADIUS).abs()).fold(0.0, f32::max);
     println!("sphere: mean radial error {mean_error:.4}, worst {worst:.4}, {} vertices", radii.len());
-    // The initial SDF is a sphere of radius ~0.4 (mean error ~0.2); 300 iterations of 256 rays
+    // The initial SDF is a blob of radius ~0.4 (mean error ~0.2); 300 iterations of 256 rays
     // on six 64x64 views bring it within a few percent of the radius.
     assert!(mean_error < 0.025, "mean radial error {mean_error}");
     assert!(worst < 0.15, "worst radial error {worst}");
