@@ -459,6 +459,22 @@ fn recon_trains_at_a_downscale_and_writes_outputs_at_full_size() {
 }
 
 #[test]
+fn recon_refuses_a_start_without_a_surface_and_names_the_radius_that_has_one() {
+    let tmp = tempfile::tempdir().unwrap();
+    let fixture = rmvp_testkit::fixture("spot_nersp");
+    let out = tmp.path().join("paper");
+    let args = ["recon", s(&fixture), "-o", s(&out), "--preset", "paper", "--iters", "1", "--batch", "32"];
+    let err = fails(&[&args[..], &["--initial-radius", "0.2"]].concat());
+    let (_, least) = err.split_once("a radius of at least ").expect(&err);
+    let least = least.split_whitespace().next().unwrap();
+    assert!(err.contains("0.2 leaves this network's start without a surface"), "{err}");
+    assert!(!out.exists(), "refused before anything is written");
+    // The radius it names trains.
+    ok(&[&args[..], &["--initial-radius", least, "--mesh-res", "24", "--mesh-only"]].concat());
+    assert_eq!(std::fs::read_to_string(out.join("log.jsonl")).unwrap().lines().count(), 1);
+}
+
+#[test]
 fn recon_writes_progress_lines_into_a_log_during_training_and_none_when_quiet() {
     let tmp = tempfile::tempdir().unwrap();
     let spot = rmvp_testkit::fixture("spot_nersp");

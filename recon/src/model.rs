@@ -701,6 +701,17 @@ impl Model {
         params
     }
 
+    /// Where the start `params` (from [`Model::init`]) has no surface, the initial radius
+    /// above which it would: the SDF at the centre is that radius less
+    /// [`ModelConfig::initial_radius`] (the radius is the last layer's bias, and nothing else
+    /// depends on it). The paper network's softplus layers lift the centre by about 0.32, so a
+    /// start of 0.2 leaves its SDF positive everywhere and nothing to grow from.
+    pub fn start_without_surface(&self, params: &[f32]) -> Option<f32> {
+        let level_weight = vec![1.0; self.field.levels()];
+        let centre = self.field.sdf(params, &[0.0; 3], &level_weight)[0];
+        (centre >= 0.0).then_some(self.config.initial_radius + centre)
+    }
+
     /// NeuS's inverse standard deviation `s = exp(VARIANCE_SCALE variance)`.
     pub fn inv_s(&self, params: &[f32]) -> f32 {
         // Capped at 1e6, but a NaN variance stays NaN (f32::min would hide it).
@@ -814,6 +825,22 @@ mod tests {
         assert!(mean_crossing(Preset::Paper, 0.5) > 0.3);
         let (small, neus) = (mean_crossing(Preset::Fast, 0.2), mean_crossing(Preset::Fast, 0.5));
         assert!(small < 0.5 * neus, "radius 0.2: mean surface at {small:.3}, radius 0.5: {neus:.3}");
+    }
+
+    #[test]
+    fn a_start_without_a_surface_is_found_with_the_radius_it_needs() {
+        let start = |preset: Preset, radius: f32| {
+            let model = Model::new(ModelConfig { initial_radius: radius, ..presets::model(preset) });
+            model.start_without_surface(&model.init(0))
+        };
+        assert_eq!(start(Preset::Fast, 0.2), None);
+        assert_eq!(start(Preset::Paper, 0.5), None);
+        let least = start(Preset::Paper, 0.2).expect("the paper network at 0.2 starts without a surface");
+        assert!((0.25..0.45).contains(&least), "{least}");
+        // The same threshold from any radius below it; just above it the start has a surface.
+        assert!((start(Preset::Paper, 0.1).unwrap() - least).abs() < 1e-4);
+        assert_eq!(start(Preset::Paper, least + 0.01), None);
+        assert!(start(Preset::Paper, least - 0.01).is_some());
     }
 
     #[test]

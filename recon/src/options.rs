@@ -88,7 +88,8 @@ pub struct ReconOptions {
     /// Radius of the sphere the SDF starts from, in the scene's unit sphere; the surface grows
     /// out of it to meet the masks, so a concavity the masks do not show (a bowl, a cup) opens
     /// only where the start lies inside it; default: the preset's (0.2 in fast; NeuS's 0.5 in
-    /// dense and paper).
+    /// dense and paper). A radius too small for the network to start with a surface (about 0.1
+    /// in fast, 0.32 in paper) is refused before training, naming the least that has one.
     #[cfg_attr(feature = "clap", arg(long, value_name = "RADIUS"))]
     pub initial_radius: Option<f32>,
     /// Train at 1/N of the views' size (Stokes and masks averaged over N x N blocks, the

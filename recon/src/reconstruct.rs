@@ -46,7 +46,6 @@ pub fn reconstruct(
     options.validate()?;
     // A mesh device that cannot run is said before training, not after it.
     check_device(options.mesh_device)?;
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let config = options.config();
     let set = if config.downscale > 1 {
         TrainingSet::from_scene(&scene.downscaled(config.downscale), config.margin)?
@@ -67,8 +66,18 @@ pub fn reconstruct(
         }
         t
     } else {
-        Trainer::new(config, set)
+        let trainer = Trainer::new(config, set);
+        if let Some(least) = trainer.model.start_without_surface(&trainer.params) {
+            return Err(Error::InvalidOption(format!(
+                "an initial sphere of radius {} leaves this network's start without a surface \
+                 (its SDF is positive at the centre): a radius of at least {:.2} starts with one",
+                trainer.config.model.initial_radius,
+                (least * 100.0).floor() / 100.0 + 0.01
+            )));
+        }
+        trainer
     };
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     trainer.options = Some(options.clone());
     // The log keeps exactly the iterations the checkpoint has seen.
     let kept: String = match rmvp_dataset::io::input::read_text(&log_path) {
