@@ -20,10 +20,22 @@ struct Run {
     change: fn(&mut TrainConfig),
 }
 
-fn train(run: Run, iterations: u32) -> f64 {
+/// The sphere the SDF starts from.
+#[derive(Clone, Copy)]
+enum Start {
+    /// The preset's (`ModelConfig::initial_radius`).
+    Preset,
+    /// NeuS's, in place of the preset's.
+    Neus,
+}
+
+fn train(run: Run, start: Start, iterations: u32) -> f64 {
     let scene = read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
     let mut config = presets::training(Preset::Fast, iterations);
     config.batch_rays = 256;
+    if let Start::Neus = start {
+        config.model.initial_radius = neus_initial_radius();
+    }
     (run.change)(&mut config);
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     let mut trainer = Trainer::new(config, set);
@@ -41,79 +53,59 @@ fn train(run: Run, iterations: u32) -> f64 {
 
 /// `train` in a pool of one thread: the runs train side by side, which keeps two cores busier
 /// than one run on both (results do not depend on the thread count).
-fn train_alone(run: Run, iterations: u32) -> f64 {
+fn train_alone(run: Run, start: Start, iterations: u32) -> f64 {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    pool.install(|| train(run, iterations))
-}
-
-/// NeuS's initial sphere in place of the preset's.
-fn neus_start(config: &mut TrainConfig) {
-    config.model.initial_radius = neus_initial_radius();
+    pool.install(|| train(run, start, iterations))
 }
 
 #[test]
-fn full_model_beats_both_ablations_and_nersps_settings_on_spot() {
+fn full_model_beats_both_ablations_nersps_settings_and_the_plain_tangent_term_on_spot() {
     // After 400 iterations the preset's small start (`ModelConfig::initial_radius`) has not
     // yet grown into the object (11.00 degrees, NeRSP's settings 10.32), so the cues are
     // compared from NeuS's start, where they have.
     let runs = [
-        Run { name: "preset", change: neus_start },
-        Run {
-            name: "photometric only",
-            change: |c| {
-                neus_start(c);
-                c.geometric = false;
-            },
-        },
-        Run {
-            name: "geometric only",
-            change: |c| {
-                neus_start(c);
-                c.photometric = false;
-            },
-        },
+        Run { name: "preset", change: |_| {} },
+        Run { name: "photometric only", change: |c| c.geometric = false },
+        Run { name: "geometric only", change: |c| c.photometric = false },
         Run {
             name: "NeRSP's lobes and tangent gradient",
             change: |c| {
-                neus_start(c);
                 c.model.diffuse_transmission = false;
                 c.model.specular_tilt = false;
                 c.tangent_azimuth_only = false;
                 c.tangent_robust_angle = 0.0;
             },
         },
+        Run { name: "NeRSP's plain tangent term", change: |c| c.tangent_robust_angle = 0.0 },
     ];
-    let [full, photometric_only, geometric_only, nersp] = std::thread::scope(|scope| {
-        runs.map(|run| scope.spawn(move || train_alone(run, 400))).map(|run| run.join().unwrap())
+    let [full, photometric_only, geometric_only, nersp, plain] = std::thread::scope(|scope| {
+        runs.map(|run| scope.spawn(move || train_alone(run, Start::Neus, 400))).map(|run| run.join().unwrap())
     });
-    // Measured: the preset from NeuS's start 6.89 degrees (7.21 with the plain tangent term),
-    // photometric only 7.60, geometric only 14.30, with NeRSP's normalised diffuse lobe,
-    // untilted specular lobe and plain tangent term with its full gradient 7.66.
+    // Measured: the preset from NeuS's start 6.89 degrees, photometric only 7.60, geometric
+    // only 14.30, with NeRSP's normalised diffuse lobe, untilted specular lobe and plain tangent
+    // term with its full gradient 7.66, with the plain tangent term alone 7.21.
     assert!(full < photometric_only, "full {full:.2} vs photometric only {photometric_only:.2}");
     assert!(full < geometric_only, "full {full:.2} vs geometric only {geometric_only:.2}");
     assert!(full < nersp, "full {full:.2} vs NeRSP's settings {nersp:.2}");
+    assert!(full < plain, "full {full:.2} vs the plain tangent term {plain:.2}");
     assert!(full < 7.05, "full model: {full:.2} deg (the plain tangent term gave 7.21)");
 }
 
 #[test]
-fn the_robust_tangent_term_on_curved_surfaces_and_the_tilted_lobe_each_gain_on_spot() {
+fn the_tilted_lobe_gains_on_spot_from_the_presets_start() {
+    // The tilt is read from the specular network, which takes longer to fit than the cues:
+    // after 400 iterations from NeuS's start the lobe about the normal still does better
+    // (7.07 against 7.21 with the plain tangent term), after 1000 from the preset's start
+    // the tilted one does.
     let runs = [
         Run { name: "preset", change: |_| {} },
-        Run { name: "NeRSP's plain tangent term", change: |c| c.tangent_robust_angle = 0.0 },
-        Run {
-            name: "the plain tangent term, the specular lobe polarized about the normal",
-            change: |c| {
-                c.tangent_robust_angle = 0.0;
-                c.model.specular_tilt = false;
-            },
-        },
+        Run { name: "the specular lobe polarized about the normal", change: |c| c.model.specular_tilt = false },
     ];
-    let [preset, plain, untilted] = std::thread::scope(|scope| {
-        runs.map(|run| scope.spawn(move || train_alone(run, 1000))).map(|run| run.join().unwrap())
+    let [preset, untilted] = std::thread::scope(|scope| {
+        runs.map(|run| scope.spawn(move || train_alone(run, Start::Preset, 1000))).map(|run| run.join().unwrap())
     });
-    // Measured: the preset 4.57 degrees, with the plain tangent term 4.73, with the lobe about
-    // the normal as well 4.88 (from NeuS's start 4.62, 4.78 and 4.92).
-    assert!(preset < plain, "preset {preset:.2} vs the plain tangent term {plain:.2}");
-    assert!(plain < untilted, "tilted {plain:.2} vs the lobe about the normal {untilted:.2}");
-    assert!(preset < 4.70, "preset: {preset:.2} deg (the plain tangent term gave 4.78)");
+    // Measured: the preset 4.57 degrees, the lobe about the normal 4.66 (with the plain tangent
+    // term: 4.73 tilted, 4.88 about the normal).
+    assert!(preset < untilted, "tilted {preset:.2} vs the lobe about the normal {untilted:.2}");
+    assert!(preset < 4.70, "preset: {preset:.2} deg (the plain tangent term gave 4.73)");
 }
