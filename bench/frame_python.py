@@ -26,11 +26,12 @@ def unpack_12p(buf):
 
 def process(buf):
     raw = unpack_12p(buf)
-    # Cell [90 45; 135 0]; each sub-mosaic is GenICam BayerRG = OpenCV BayerBG.
+    # Cell [90 135; 45 0] in the image frame (+y down; the vendor's names are [90 45; 135 0],
+    # counted towards image up); each sub-mosaic is GenICam BayerRG = OpenCV BayerBG.
     code = cv2.COLOR_BayerBG2RGB
     i090 = cv2.cvtColor(np.ascontiguousarray(raw[0::2, 0::2]), code)
-    i045 = cv2.cvtColor(np.ascontiguousarray(raw[0::2, 1::2]), code)
-    i135 = cv2.cvtColor(np.ascontiguousarray(raw[1::2, 0::2]), code)
+    i135 = cv2.cvtColor(np.ascontiguousarray(raw[0::2, 1::2]), code)
+    i045 = cv2.cvtColor(np.ascontiguousarray(raw[1::2, 0::2]), code)
     i000 = cv2.cvtColor(np.ascontiguousarray(raw[1::2, 1::2]), code)
     gain = np.float32(1.0 / 4095.0)
     i0, i45, i90, i135 = (x.astype(np.float32) * gain for x in (i000, i045, i090, i135))

@@ -33,6 +33,9 @@ enum Command {
     Simulate(simulate::Args),
     /// Capture a session of polarized views with the camera (or a simulated one).
     Capture(capture::Args),
+    /// Compute a capture session's views again from its raw frames (a session processed with
+    /// another polarizer cell than the sensor's is refused until then).
+    Reprocess(capture::ReprocessArgs),
     /// List the GenICam cameras (USB3 Vision, GigE Vision) aravis finds.
     Cameras,
     /// Run a simulated polarization camera (GigE Vision on loopback) until killed.
@@ -89,6 +92,7 @@ fn main() {
         Command::Demo(args) => demo::run(args),
         Command::Simulate(args) => simulate::run(args),
         Command::Capture(args) => capture::run(args),
+        Command::Reprocess(args) => capture::reprocess(args),
         Command::Cameras => capture::cameras(),
         Command::SimulateCamera(args) => capture::simulate_camera(args),
         Command::Board(args) => board::run(args),

@@ -265,6 +265,31 @@ fn hdr_brackets_recover_highlights_the_long_exposure_clips() {
     // Where 120 ms clips, only the two 4-ms frames measure; elsewhere the long exposure
     // dominates. Merging clipped samples as if they were not would underestimate by far more.
     assert!(u < 0.02 && c < 0.04, "HDR S0 relative error: {u:.4} unclipped, {c:.4} clipped");
+
+    // The same session as one written before sessions recorded their polarizer cell: format
+    // `/2`, no cell, a view's S2 of the wrong sign. It is refused by name until `rmvp
+    // reprocess` computes its views again from the raw frames (brackets, averages and dark
+    // frames), which gives back this session's files to the byte.
+    let manifest_path = dir.join("session.json");
+    let mut old: serde_json::Value = serde_json::from_slice(&std::fs::read(&manifest_path).unwrap()).unwrap();
+    old["format"] = "rmvp-capture-session/2".into();
+    old.as_object_mut().unwrap().remove("polarizer_cell");
+    std::fs::write(&manifest_path, serde_json::to_vec_pretty(&old).unwrap()).unwrap();
+    let mut mirrored = measured.clone();
+    mirrored.s2.data_mut().iter_mut().for_each(|v| *v = -*v);
+    rmvp_dataset::layout::rmvp::write_stokes(&dir.join("views/000/view_stokes.exr"), &mirrored).unwrap();
+    let err = SessionManifest::read(&dir).unwrap_err().to_string();
+    assert!(err.contains("session.json") && err.contains("[90 45; 135 0]") && err.contains("rmvp reprocess"), "{err}");
+    let out = run({
+        let mut command = Command::new(env!("CARGO_BIN_EXE_rmvp"));
+        command.args(["reprocess", dir.to_str().unwrap()]);
+        command
+    });
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let reprocessed = SessionManifest::read(&dir).unwrap();
+    assert_eq!(reprocessed.format, "rmvp-capture-session/3");
+    assert_eq!(reprocessed.views, manifest.views, "views computed again as they were captured");
+    reprocessed.verify(&dir).unwrap();
 }
 
 #[test]

@@ -186,6 +186,30 @@ fn demosaic_reports_a_truncated_frame_by_name() {
 }
 
 #[test]
+fn check_finds_the_fixtures_aop_in_our_frame_and_a_mirrored_copy_mirrored() {
+    let tmp = tempfile::tempdir().unwrap();
+    for name in ["spot_nersp", "bunny_nersp"] {
+        let scene = fixture(name);
+        let out = common::rmvp(&["dataset", "check", s(&scene), "--json"]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let judged: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(judged["verdict"], "stored", "{judged}");
+        let (stored, mirrored) = (judged["stored"].as_f64().unwrap(), judged["mirrored"].as_f64().unwrap());
+        eprintln!("{name}: {stored:.3} as stored, {mirrored:.3} mirrored");
+        assert!(stored > 0.25 && mirrored < 0.1, "{judged}");
+
+        let flipped = tmp.path().join(name);
+        ok(&["dataset", "convert", s(&scene), s(&flipped), "--layout", "nersp", "--mirror-aop"]);
+        let err = fails(&["dataset", "check", s(&flipped)]);
+        assert!(err.contains("mirrored") && err.contains("--mirror-aop"), "{err}");
+        // Mirrored back, the copy is the fixture again as far as the check can tell.
+        let back = tmp.path().join(format!("{name}_back"));
+        ok(&["dataset", "convert", s(&flipped), s(&back), "--layout", "nersp", "--mirror-aop"]);
+        assert!(ok(&["dataset", "check", s(&back)]).contains(&format!("{stored:.3} as stored")));
+    }
+}
+
+#[test]
 fn info_summarises_and_validates_both_layouts() {
     let spot = fixture("spot_nersp");
     let text = ok(&["info", s(&spot)]);

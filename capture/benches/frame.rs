@@ -59,7 +59,7 @@ fn main() {
     let mut decoded = raw.clone();
     let subs = split(&raw);
     let rgb: [Image<u16>; 4] = subs.clone().map(|s| demosaic(&s, 12, DemosaicMethod::Bilinear).unwrap());
-    let estimator = StokesEstimator::new(None);
+    let estimator = StokesEstimator::new(4095, false);
     let stokes = estimator.estimate(&rgb, 4095).stokes;
     let processor = FrameProcessor::default();
     // Steady state of a stream: every stage writes into buffers reused from frame to frame.

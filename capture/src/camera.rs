@@ -2,6 +2,7 @@
 //! GenICam names, pixel-format negotiation and streaming with a buffer pool. The same code
 //! drives the FLIR Blackfly S over USB3 Vision and the simulated camera over GigE Vision.
 
+use crate::mosaic::SensorLayout;
 use crate::raw::PixelFormat;
 use crate::{Error, Result};
 use aravis::glib::prelude::Cast;
@@ -24,6 +25,22 @@ pub struct DeviceInfo {
     pub protocol: String,
     /// Network address (GigE Vision) or bus path (USB3 Vision).
     pub address: String,
+}
+
+impl DeviceInfo {
+    /// Whether `selector` names this camera: its address, its aravis id, or the serial that
+    /// ends the id. Over USB3 Vision aravis ends the id with the USB serial in hexadecimal
+    /// while the label and `DeviceSerialNumber` give it in decimal, so a decimal serial also
+    /// matches its hexadecimal form (with or without leading zeros, any case).
+    pub fn selected_by(&self, selector: &str) -> bool {
+        let serial = self.id.rsplit('-').next().unwrap_or_default();
+        let hex_of_label = selector
+            .parse::<u64>()
+            .ok()
+            .filter(|_| self.protocol == "USB3Vision")
+            .is_some_and(|n| u64::from_str_radix(serial, 16).is_ok_and(|usb| usb == n));
+        self.address == selector || self.id == selector || serial == selector || hex_of_label
+    }
 }
 
 /// aravis's global device list (the library allows one owner per process).
@@ -118,12 +135,8 @@ impl CameraDevice {
     /// `selector`.
     pub fn open(selector: Option<&str>) -> Result<Self> {
         let name = selector.unwrap_or("first camera").to_string();
-        let id = selector.map(|s| {
-            list_devices()
-                .into_iter()
-                .find(|d| d.address == s || d.id == s || d.id.ends_with(&format!("-{s}")))
-                .map_or_else(|| s.to_string(), |d| d.id)
-        });
+        let id = selector
+            .map(|s| list_devices().into_iter().find(|d| d.selected_by(s)).map_or_else(|| s.to_string(), |d| d.id));
         let camera = aravis::Camera::new(id.as_deref()).map_err(|e| {
             Error::camera(&name, format!("cannot open ({e}); cameras found: {}", describe(&list_devices())))
         })?;
@@ -161,9 +174,41 @@ impl CameraDevice {
         }
     }
 
-    /// Whether the camera has a feature of this GenICam name.
-    pub fn has_feature(&self, name: &str) -> bool {
-        self.device.feature(name).is_some()
+    /// Whether a feature works on this camera now: defined, implemented and available. FLIR
+    /// defines every node on every model and says through `pIsImplemented` and `pIsAvailable`
+    /// whether it works, so a node's existence says nothing.
+    pub fn is_available(&self, name: &str) -> bool {
+        self.node(name).is_ok_and(|n| n.is_implemented().unwrap_or(false) && n.is_available().unwrap_or(false))
+    }
+
+    /// Whether a feature can be written now: available and not locked (`pIsLocked`: many FLIR
+    /// features are locked while `TLParamsLocked` is set, during acquisition).
+    pub fn is_writable(&self, name: &str) -> bool {
+        self.is_available(name) && self.node(name).is_ok_and(|n| !n.is_locked().unwrap_or(true))
+    }
+
+    /// Set a feature from text and read it back. aravis checks neither locks nor ranges, so
+    /// this refuses a feature that is not available or is locked, and an error names a value
+    /// the camera did not keep (floats may be rounded to the camera's step: within 0.5 %).
+    pub fn write(&self, name: &str, value: &str) -> Result<String> {
+        if !self.is_available(name) {
+            return Err(Error::camera(&self.name, format!("cannot set {name} = {value}: not available on it now")));
+        }
+        if !self.is_writable(name) {
+            return Err(Error::camera(&self.name, format!("cannot set {name} = {value}: it is locked")));
+        }
+        self.set_feature(name, value)?;
+        let kept = self.feature(name)?;
+        if !same_value(value, &kept) {
+            return Err(Error::camera(&self.name, format!("set {name} = {value}, but it reads back {kept}")));
+        }
+        Ok(kept)
+    }
+
+    /// [`CameraDevice::write`] for a float feature; returns the value the camera kept.
+    pub fn write_float(&self, name: &str, value: f64) -> Result<f64> {
+        let kept = self.write(name, &value.to_string())?;
+        kept.parse().map_err(|_| Error::camera(&self.name, format!("{name} reads back {kept:?}, not a number")))
     }
 
     fn node(&self, name: &str) -> Result<aravis::GcFeatureNode> {
@@ -238,38 +283,58 @@ impl CameraDevice {
         Ok(())
     }
 
-    /// Apply `settings`: pixel format (negotiated), auto exposure and gain off, exposure time,
-    /// gain, frame rate and trigger. Returns the pixel format chosen.
+    /// Put the camera in a known state and apply `settings`, reading back every value written:
+    /// pixel format (negotiated) and an ADC depth to match, gamma off, readout unmirrored and
+    /// offsets that keep the mosaic's phase ([`CameraDevice::keep_the_mosaic`]), auto exposure
+    /// and gain off, exposure, gain, then the frame rate (its maximum depends on the exposure)
+    /// and the trigger. Returns the pixel format chosen.
     pub fn configure(&mut self, settings: &CameraOptions) -> Result<PixelFormat> {
         let format = choose_pixel_format(&self.offered_pixel_formats()?, settings.pixel_format.as_deref())?;
         // The buffer pool is sized for the payload: a new format needs a new pool.
         self.stream = None;
-        self.set_feature("PixelFormat", &format.name())?;
+        self.write("PixelFormat", &format.name())?;
+        if self.is_writable("AdcBitDepth") {
+            // The IMX250's ADC gives at most 12 bits; 16-bit formats carry 12.
+            self.write("AdcBitDepth", &format!("Bit{}", format.bits.min(12)))?;
+        }
+        self.keep_the_mosaic(format)?;
         for auto in ["ExposureAuto", "GainAuto"] {
-            if self.has_feature(auto) {
-                self.set_feature(auto, "Off")?;
+            if self.is_available(auto) {
+                self.write(auto, "Off")?;
             }
         }
+        // A frame rate left enabled by another program would bound the exposure.
+        if self.is_available("AcquisitionFrameRateEnable") {
+            self.write("AcquisitionFrameRateEnable", "false")?;
+        }
         self.set_exposure(settings.exposure_us)?;
-        self.set_float("Gain", settings.gain_db)?;
-        if self.has_feature("AcquisitionFrameRateEnable") {
-            self.set_feature(
-                "AcquisitionFrameRateEnable",
-                if settings.frame_rate.is_some() { "true" } else { "false" },
-            )?;
-        }
+        self.write_float("Gain", settings.gain_db)?;
         if let Some(rate) = settings.frame_rate {
-            self.set_float("AcquisitionFrameRate", rate)?;
+            if self.is_available("AcquisitionFrameRateEnable") {
+                self.write("AcquisitionFrameRateEnable", "true")?;
+            }
+            if let Ok((_, max)) = self.camera.float_bounds("AcquisitionFrameRate") {
+                if rate > max {
+                    return Err(Error::camera(
+                        &self.name,
+                        format!(
+                            "cannot run at {rate} frames/s: at an exposure of {} us it runs at most {max:.3}",
+                            settings.exposure_us
+                        ),
+                    ));
+                }
+            }
+            self.write_float("AcquisitionFrameRate", rate)?;
         }
-        self.set_feature("AcquisitionMode", "Continuous")?;
-        if self.has_feature("TriggerSelector") {
-            self.set_feature("TriggerSelector", "FrameStart")?;
+        self.write("AcquisitionMode", "Continuous")?;
+        if self.is_available("TriggerSelector") {
+            self.write("TriggerSelector", "FrameStart")?;
         }
         // FLIR cameras only accept a trigger source while the trigger is off.
-        self.set_feature("TriggerMode", "Off")?;
+        self.write("TriggerMode", "Off")?;
         if settings.trigger == TriggerSource::Line0 {
-            self.set_feature("TriggerSource", "Line0")?;
-            self.set_feature("TriggerMode", "On")?;
+            self.write("TriggerSource", "Line0")?;
+            self.write("TriggerMode", "On")?;
         }
         self.read_geometry()?;
         if self.format != format {
@@ -281,9 +346,44 @@ impl CameraDevice {
         Ok(format)
     }
 
-    /// Set `ExposureTime` (microseconds), e.g. between HDR brackets.
+    /// Keep the sensor's mosaic where rmvp reads it: gamma off (the samples stay linear),
+    /// readout not mirrored (`ReverseX`/`ReverseY` move which polarizer sits at the first
+    /// pixel), and `OffsetX`/`OffsetY` whole mosaic tiles (2 pixels for the mono sensor, 4 for
+    /// the colour one). A camera that cannot be put so is refused, naming the feature.
+    pub fn keep_the_mosaic(&self, format: PixelFormat) -> Result<()> {
+        let refuse = |feature: &str, why: String| {
+            Error::camera(&self.name, format!("{feature}: {why}; rmvp cannot read its polarizer mosaic so"))
+        };
+        for (feature, linear) in [("GammaEnable", "false"), ("ReverseX", "false"), ("ReverseY", "false")] {
+            if !self.is_available(feature) || same_value(linear, &self.feature(feature)?) {
+                continue;
+            }
+            self.write(feature, linear).map_err(|e| {
+                refuse(
+                    feature,
+                    format!("left {}, and it cannot be set {linear} ({e})", self.feature(feature).unwrap_or_default()),
+                )
+            })?;
+        }
+        let tile = if format.family.layout() == SensorLayout::MonoPolarized { 2 } else { 4 };
+        for feature in ["OffsetX", "OffsetY"] {
+            if !self.is_available(feature) {
+                continue;
+            }
+            let offset = self.integer(feature)?;
+            if offset % tile == 0 {
+                continue;
+            }
+            self.write(feature, &(offset - offset % tile).to_string()).map_err(|e| {
+                refuse(feature, format!("{offset} is not a multiple of the {tile}-pixel mosaic tile ({e})"))
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Set `ExposureTime` (microseconds), e.g. between HDR brackets, and read it back.
     pub fn set_exposure(&self, exposure_us: f64) -> Result<()> {
-        self.set_float("ExposureTime", exposure_us)
+        self.write_float("ExposureTime", exposure_us).map(|_| ())
     }
 
     /// Pixel format, width and height of the frames.
@@ -294,6 +394,11 @@ impl CameraDevice {
     /// Create the stream (if needed), queue the buffer pool and start acquiring.
     pub fn start(&mut self) -> Result<()> {
         if self.stream.is_none() {
+            if self.camera.is_uv_device() {
+                // aravis streams USB3 synchronously by default; asynchronous bulk transfers
+                // keep up with the sensor's full rate.
+                self.camera.uv_set_usb_mode(aravis::UvUsbMode::Async);
+            }
             if self.camera.is_gv_device() {
                 // The largest packet the path carries (jumbo frames, 64 KiB on loopback): fewer
                 // packets per frame. A camera that cannot tell keeps its default.
@@ -360,6 +465,23 @@ impl Drop for CameraDevice {
     }
 }
 
+/// Whether a value read back is the value written: the same text, the same boolean, or numbers
+/// within 0.5 % (a camera rounds floats to its own step, e.g. exposure to its line time).
+fn same_value(written: &str, read: &str) -> bool {
+    let boolean = |v: &str| match v.to_ascii_lowercase().as_str() {
+        "true" | "1" => Some(true),
+        "false" | "0" => Some(false),
+        _ => None,
+    };
+    if written == read || boolean(written).is_some_and(|w| boolean(read) == Some(w)) {
+        return true;
+    }
+    match (written.parse::<f64>(), read.parse::<f64>()) {
+        (Ok(w), Ok(r)) => (w - r).abs() <= 0.005 * w.abs().max(r.abs()) || (w - r).abs() < 1e-9,
+        _ => false,
+    }
+}
+
 /// A one-line list of cameras for messages.
 pub fn describe(devices: &[DeviceInfo]) -> String {
     if devices.is_empty() {
@@ -379,6 +501,35 @@ mod tests {
 
     fn names(list: &[&str]) -> Vec<String> {
         list.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn read_back_values_compare_as_the_camera_writes_them() {
+        assert!(same_value("Off", "Off") && !same_value("Off", "Continuous"));
+        assert!(same_value("false", "0") && same_value("true", "1") && !same_value("true", "false"));
+        assert!(same_value("20000", "20003.2"), "rounded to the line time");
+        assert!(!same_value("20000", "19000") && !same_value("30", "25"), "clamped");
+    }
+
+    #[test]
+    fn a_usb3_camera_opens_by_the_decimal_serial_on_its_label() {
+        let usb = |id: &str| DeviceInfo {
+            id: id.into(),
+            vendor: "FLIR".into(),
+            model: "Blackfly S BFS-U3-51S5PC".into(),
+            protocol: "USB3Vision".into(),
+            address: "1-2".into(),
+        };
+        // Label 19130117 = 0x0123E705.
+        let flir = usb("FLIR-Blackfly S BFS-U3-51S5PC-0123E705");
+        for selector in ["19130117", "0123E705", "1-2", "FLIR-Blackfly S BFS-U3-51S5PC-0123E705"] {
+            assert!(flir.selected_by(selector), "{selector}");
+        }
+        assert!(!flir.selected_by("19130118") && !flir.selected_by("0123E706"));
+        assert!(usb("FLIR-BFS-0123e705").selected_by("19130117"), "lower-case hex");
+        let gige =
+            DeviceInfo { protocol: "GigEVision".into(), address: "127.0.0.1".into(), ..usb("rmvp-Sim-19130117") };
+        assert!(gige.selected_by("19130117") && !DeviceInfo { id: "rmvp-Sim-123".into(), ..gige }.selected_by("291"));
     }
 
     #[test]

@@ -9,7 +9,8 @@
 //! through [`rmvp_dataset::session`], without this crate) and the live preview ([`preview`]).
 //!
 //! Target sensor: Sony IMX250MYR (FLIR Blackfly S BFS-U3-51S5PC-C), 2448x2048, each 2x2 cell of
-//! polarizers `[90 45; 135 0]` under one colour of an RGGB Bayer pattern; and its mono sibling
+//! polarizers `[90 135; 45 0]` in the image frame (the vendor's `[90 45; 135 0]`, counted
+//! towards image up) under one colour of an RGGB Bayer pattern; and its mono sibling
 //! IMX250MZR. Polarization conventions are those of [`rmvp_dataset::polarization`].
 
 #![warn(missing_docs)]

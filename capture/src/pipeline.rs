@@ -77,7 +77,7 @@ impl FrameProcessor {
             }
         }
         let full_scale = raw.full_scale();
-        let estimator = StokesEstimator::new(self.saturation_aware.then_some(full_scale));
+        let estimator = StokesEstimator::new(full_scale, self.saturation_aware);
         if self.color_correction.is_some() && raw.layout == SensorLayout::MonoPolarized {
             return Err(Error::Unsupported("a colour-correction matrix needs RGB frames".into()));
         }

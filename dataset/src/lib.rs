@@ -16,6 +16,7 @@
 pub mod camera;
 pub mod error;
 pub mod exchange;
+pub mod handedness;
 pub mod image;
 pub mod io;
 pub mod layout;

@@ -12,6 +12,54 @@ use std::f32::consts::{FRAC_PI_2, PI};
 /// Polarizer angles of a four-directional polarization sensor, in degrees.
 pub const POLARIZER_ANGLES_DEG: [u32; 4] = [0, 45, 90, 135];
 
+/// A 2x2 cell of a polarization sensor: the transmission axis of each site, in degrees in the
+/// image frame (from +x towards +y, down), row by row: `[[top left, top right], [bottom left,
+/// bottom right]]`.
+pub type PolarizerCell = [[u32; 2]; 2];
+
+/// The Sony IMX250MZR/MYR cell as the light shows it: `[90 135; 45 0]`.
+///
+/// Sony and FLIR name the sites `[90 45; 135 0]` with angles that turn counter-clockwise as a
+/// person sees the picture (towards image *up*). Measured on real IMX250MZR frames
+/// (`docs/conventions.md`): near the rims of glossy fruit, specular reflection is polarized
+/// tangentially only when the site named 45 is read at 135 degrees in the +y-down frame (median
+/// 4-7 degrees off the tangent), and the 0/90 naming holds (horizontal glare has `S1 > 0`).
+pub const SENSOR_POLARIZER_CELL: PolarizerCell = [[90, 135], [45, 0]];
+
+/// The vendor's names taken as +y-down angles, `[90 45; 135 0]`: what sessions written before
+/// the layout was recorded were processed with. It mirrors every AoP (`S2` has the wrong sign).
+pub const VENDOR_NAMES_AS_IMAGE_ANGLES: PolarizerCell = [[90, 45], [135, 0]];
+
+/// Offset `(dx, dy)` inside `cell` of the polarizer at each of [`POLARIZER_ANGLES_DEG`].
+///
+/// # Panics
+/// If an angle of [`POLARIZER_ANGLES_DEG`] is not in the cell exactly once (at compile time
+/// for a constant cell).
+pub const fn polarizer_offsets(cell: &PolarizerCell) -> [(usize, usize); 4] {
+    let mut offsets = [(0, 0); 4];
+    let mut k = 0;
+    while k < 4 {
+        let mut found = 0;
+        let mut site = 0;
+        while site < 4 {
+            let (dx, dy) = (site % 2, site / 2);
+            if cell[dy][dx] == POLARIZER_ANGLES_DEG[k] {
+                offsets[k] = (dx, dy);
+                found += 1;
+            }
+            site += 1;
+        }
+        assert!(found == 1, "a polarizer cell holds each of 0, 45, 90 and 135 degrees once");
+        k += 1;
+    }
+    offsets
+}
+
+/// A cell written as the vendor does, `[a b; c d]`.
+pub fn cell_name(cell: &PolarizerCell) -> String {
+    format!("[{} {}; {} {}]", cell[0][0], cell[0][1], cell[1][0], cell[1][1])
+}
+
 /// The row of the measurement model: `I(theta) = row . (S0, S1, S2)`.
 pub fn measurement_row(theta_rad: f64) -> [f64; 3] {
     [0.5, 0.5 * (2.0 * theta_rad).cos(), 0.5 * (2.0 * theta_rad).sin()]

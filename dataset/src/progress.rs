@@ -21,6 +21,11 @@ pub fn set_quiet(quiet: bool) {
     QUIET.store(quiet, Ordering::Relaxed);
 }
 
+/// Whether [`set_quiet`] silenced this process.
+pub fn is_quiet() -> bool {
+    QUIET.load(Ordering::Relaxed)
+}
+
 /// A progress bar over `total` items on standard error, labelled `what` (plain lines where
 /// standard error is not a terminal); hidden when `show` is false or after [`set_quiet`]
 /// (every call on it then does nothing).

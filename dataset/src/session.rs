@@ -13,6 +13,7 @@
 
 use crate::io::input;
 use crate::io::json::{read_json, write_json};
+use crate::polarization::{cell_name, PolarizerCell, SENSOR_POLARIZER_CELL, VENDOR_NAMES_AS_IMAGE_ANGLES};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
@@ -22,9 +23,11 @@ use std::path::Path;
 /// Name of the manifest file in a session folder.
 pub const SESSION_FILE: &str = "session.json";
 /// Format tag this code writes.
-pub const SESSION_FORMAT: &str = "rmvp-capture-session/2";
-/// Older format tags this code still reads (`/1` stored the Stokes unit as free text).
-const READABLE_FORMATS: [&str; 2] = [SESSION_FORMAT, "rmvp-capture-session/1"];
+pub const SESSION_FORMAT: &str = "rmvp-capture-session/3";
+/// Older format tags this code still reads (`/1` stored the Stokes unit as free text; `/1` and
+/// `/2` record no polarizer cell: their views were processed with
+/// [`VENDOR_NAMES_AS_IMAGE_ANGLES`]).
+const READABLE_FORMATS: [&str; 3] = [SESSION_FORMAT, "rmvp-capture-session/2", "rmvp-capture-session/1"];
 /// The Stokes images of a view, relative to its folder.
 pub const VIEW_STOKES: &str = "view_stokes.exr";
 
@@ -51,6 +54,15 @@ pub struct SessionManifest {
     pub views: Vec<SessionView>,
     /// Whether all planned views are complete.
     pub complete: bool,
+    /// The polarizer cell the views' angle images, Stokes and AoP were computed with
+    /// ([`crate::polarization::PolarizerCell`]); sessions that lack it were processed with
+    /// [`VENDOR_NAMES_AS_IMAGE_ANGLES`].
+    #[serde(default = "processed_before_the_cell_was_recorded")]
+    pub polarizer_cell: PolarizerCell,
+}
+
+fn processed_before_the_cell_was_recorded() -> PolarizerCell {
+    VENDOR_NAMES_AS_IMAGE_ANGLES
 }
 
 /// What a camera says it is.
@@ -249,8 +261,29 @@ impl SessionView {
 }
 
 impl SessionManifest {
-    /// Read `DIR/session.json`.
+    /// Read `DIR/session.json`, refusing a session whose views were processed with another
+    /// polarizer cell than the sensor's: its AoP would be mirrored. [`SessionManifest::read_raw`]
+    /// reads it anyway, to process its raw frames again (`rmvp reprocess`).
     pub fn read(dir: &Path) -> Result<Self> {
+        let manifest = Self::read_raw(dir)?;
+        if manifest.polarizer_cell != SENSOR_POLARIZER_CELL {
+            return Err(Error::format(
+                dir.join(SESSION_FILE),
+                format!(
+                    "its views were processed with the polarizer cell {} in the image frame, but the sensor's is {} \
+                     (its AoP is mirrored, S2 has the wrong sign); its raw frames are right: run `rmvp reprocess {}` \
+                     to compute its views again from them",
+                    cell_name(&manifest.polarizer_cell),
+                    cell_name(&SENSOR_POLARIZER_CELL),
+                    dir.display()
+                ),
+            ));
+        }
+        Ok(manifest)
+    }
+
+    /// Read `DIR/session.json` whatever polarizer cell its views were processed with.
+    pub fn read_raw(dir: &Path) -> Result<Self> {
         let path = dir.join(SESSION_FILE);
         let manifest: SessionManifest = read_json(&path, "a session manifest")?;
         if !READABLE_FORMATS.contains(&manifest.format.as_str()) {

@@ -142,6 +142,26 @@ pub fn run(args: Args) -> Result<()> {
     Ok(())
 }
 
+/// Arguments of `rmvp reprocess`.
+#[derive(clap::Args, Clone)]
+pub struct ReprocessArgs {
+    /// Session folder.
+    pub session: PathBuf,
+}
+
+/// Run `rmvp reprocess`.
+pub fn reprocess(args: ReprocessArgs) -> Result<()> {
+    let done = rmvp_capture::session::reprocess::reprocess(&args.session, true)?;
+    eprintln!(
+        "{}: {} views computed again from {} raw and dark frames, polarizer cell {}",
+        args.session.display(),
+        done.views,
+        done.raw_files,
+        rmvp_dataset::polarization::cell_name(&rmvp_dataset::polarization::SENSOR_POLARIZER_CELL)
+    );
+    Ok(())
+}
+
 /// What a simulated camera looks at.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Setup {
@@ -254,6 +274,40 @@ pub fn simulate_camera(args: SimulateCameraArgs) -> Result<()> {
 /// List the cameras aravis finds.
 pub fn cameras() -> Result<()> {
     let devices = list_devices();
-    println!("{}", describe(&devices));
+    if devices.is_empty() {
+        println!("{}", describe(&devices));
+    }
+    for device in devices {
+        println!("{} [{} at {}]", device.id, device.protocol, device.address);
+        let camera = match CameraDevice::open(Some(&device.id)) {
+            Ok(camera) => camera,
+            Err(e) => {
+                println!("  cannot open: {e}");
+                continue;
+            }
+        };
+        let id = camera.identity();
+        println!("  {} {}, serial {}, firmware {}", id.vendor, id.model, id.serial, id.firmware);
+        let offered = camera.offered_pixel_formats().unwrap_or_default();
+        let readable: Vec<&str> =
+            offered.iter().filter(|f| f.parse::<PixelFormat>().is_ok()).map(String::as_str).collect();
+        println!(
+            "  pixel formats rmvp reads: {}",
+            if readable.is_empty() { "none".into() } else { readable.join(", ") }
+        );
+        for feature in rmvp_capture::session::RECORDED_FEATURES {
+            let state = if !camera.is_available(feature) {
+                "not available".to_string()
+            } else {
+                let value = camera.feature(feature).unwrap_or_else(|e| format!("unreadable ({e})"));
+                if camera.is_writable(feature) {
+                    value
+                } else {
+                    format!("{value} (read-only now)")
+                }
+            };
+            println!("  {feature:<30} {state}");
+        }
+    }
     Ok(())
 }

@@ -1,9 +1,10 @@
 //! `rmvp dataset ...`: datasets and scene folders. `build` makes a dataset of a posed, masked
 //! session, `publish` a release of datasets, `verify` checks one; `info` summarises and
-//! validates a scene, `convert` rewrites it in another layout, `render-normals` ray casts a
-//! mesh's ground-truth maps in every view.
+//! validates a scene, `check` judges its AoP's handedness, `convert` rewrites it in another
+//! layout, `render-normals` ray casts a mesh's ground-truth maps in every view.
 
-use anyhow::Result;
+use anyhow::{bail, Result};
+use rmvp_dataset::handedness::{Handedness, Verdict};
 use rmvp_dataset::layout::{convert_scene, read_scene, Layout};
 use rmvp_dataset::summary::SceneSummary;
 use rmvp_dataset::Mesh;
@@ -35,6 +36,8 @@ pub enum Command {
     Info(InfoArgs),
     /// Convert a scene from any layout into another (NeRSP and rmvp without loss).
     Convert(ConvertArgs),
+    /// Check a scene's AoP against its silhouettes: in rmvp's frame, or mirrored (exit status 1).
+    Check(CheckArgs),
     /// Ray cast a mesh's normal maps, masks and depths in every view of a scene.
     RenderNormals(RenderNormalsArgs),
 }
@@ -155,6 +158,20 @@ pub struct ConvertArgs {
     /// `pandora` (their views with Stokes).
     #[arg(long = "layout", alias = "to", value_enum)]
     to: Layout,
+    /// Mirror the AoP (S2 and AoP maps negated, the 45 and 135 degree images exchanged): for
+    /// a scene whose AoP `rmvp dataset check` finds mirrored.
+    #[arg(long)]
+    mirror_aop: bool,
+}
+
+/// Arguments of `rmvp dataset check`.
+#[derive(clap::Args)]
+pub struct CheckArgs {
+    /// Scene folder in any layout.
+    scene: PathBuf,
+    /// Print the figures as JSON.
+    #[arg(long)]
+    json: bool,
 }
 
 /// Arguments of `rmvp dataset render-normals`.
@@ -231,8 +248,9 @@ pub fn run(command: Command) -> Result<()> {
             Ok(())
         }
         Command::Info(args) => info(args),
+        Command::Check(args) => check(args),
         Command::Convert(args) => {
-            let scene = convert_scene(&args.source, &args.destination, args.to)?;
+            let scene = convert_scene(&args.source, &args.destination, args.to, args.mirror_aop)?;
             println!("{} views -> {} ({} layout)", scene.views.len(), args.destination.display(), args.to.name());
             Ok(())
         }
@@ -288,6 +306,43 @@ fn build(args: BuildArgs) -> Result<()> {
         println!("  {:<13} {:>8.1} s", stage.name.to_string(), stage.seconds);
     }
     Ok(())
+}
+
+fn check(args: CheckArgs) -> Result<()> {
+    let scene = read_scene(&args.scene)?;
+    let judged = Handedness::of(&scene);
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&judged)?);
+    } else {
+        println!("scene     {}", args.scene.display());
+        println!("outlines  {} polarized pixels along the silhouettes of {} views", judged.pixels, judged.views.len());
+        println!(
+            "agreement cos 4(AoP - outline normal): {:.3} as stored, {:.3} mirrored",
+            judged.stored, judged.mirrored
+        );
+        for v in &judged.views {
+            println!("  {:<6} {:>6} pixels  {:+.3} as stored  {:+.3} mirrored", v.view, v.pixels, v.stored, v.mirrored);
+        }
+    }
+    match judged.verdict {
+        Verdict::Stored => {
+            eprintln!("the AoP is in rmvp's frame (from image +x towards +y, down)");
+            Ok(())
+        }
+        Verdict::Mirrored => bail!(
+            "{}: the AoP is mirrored against rmvp's frame (S2 has the wrong sign); `rmvp dataset convert {} NEW \
+             --layout LAYOUT --mirror-aop` writes it corrected",
+            args.scene.display(),
+            args.scene.display()
+        ),
+        Verdict::Undecided => {
+            eprintln!(
+                "undecided: too few polarized outline pixels, or the AoP follows neither reading (masks that miss \
+                 the object?)"
+            );
+            Ok(())
+        }
+    }
 }
 
 fn info(args: InfoArgs) -> Result<()> {

@@ -54,6 +54,17 @@ pub fn mitsuba_scenes() -> Vec<PathBuf> {
     [evalset_root(), fixtures_root()].iter().filter_map(|root| scenes_in(root).ok()).flatten().collect()
 }
 
+/// A real raw frame from outside the project by file name (`shared/real_raw` beside the
+/// checkout, or `$RMVP_REAL_RAW`); panics with a clear message when it is missing.
+pub fn real_raw(name: &str) -> PathBuf {
+    let root = std::env::var_os("RMVP_REAL_RAW")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/real_raw"));
+    let path = root.join(name);
+    assert!(path.is_file(), "real raw frame {} missing; set RMVP_REAL_RAW", path.display());
+    path
+}
+
 /// OpenCV's chessboard photographs (`left01.jpg` ... `left14.jpg`: 13 pictures of a board of
 /// 10x7 squares, 9x6 inner corners, from a 640x480 camera), sorted, as
 /// `scripts/fetch-test-photographs.sh` (run by `./run test`) takes them out of Debian's

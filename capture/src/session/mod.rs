@@ -10,6 +10,7 @@
 
 pub mod hdr;
 pub mod positioning;
+pub mod reprocess;
 pub mod storage;
 
 use crate::camera::{CameraDevice, CameraOptions, Grab, TriggerSource};
@@ -20,6 +21,7 @@ use crate::raw::PixelFormat;
 use crate::{Error, RawFrame, Result};
 use positioning::{LastView, Positioning};
 use rmvp_dataset::io::{png, write_bytes_atomically};
+use rmvp_dataset::polarization::SENSOR_POLARIZER_CELL;
 use rmvp_dataset::session::{
     utc_now, DarkRecord, FileRecord, SessionCamera, SessionManifest, SessionSettings, SessionView, StokesUnit,
     SESSION_FILE, SESSION_FORMAT,
@@ -31,11 +33,19 @@ use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-/// Features read back into the manifest after configuration.
-pub const RECORDED_FEATURES: [&str; 14] = [
+/// Features read back into the manifest after configuration: the camera's state as it
+/// captured (those it does not have are left out).
+pub const RECORDED_FEATURES: [&str; 26] = [
     "PixelFormat",
     "Width",
     "Height",
+    "OffsetX",
+    "OffsetY",
+    "ReverseX",
+    "ReverseY",
+    "AdcBitDepth",
+    "GammaEnable",
+    "BlackLevel",
     "ExposureAuto",
     "ExposureTime",
     "GainAuto",
@@ -43,10 +53,15 @@ pub const RECORDED_FEATURES: [&str; 14] = [
     "AcquisitionMode",
     "AcquisitionFrameRateEnable",
     "AcquisitionFrameRate",
+    "AcquisitionResultingFrameRate",
+    "DeviceLinkThroughputLimit",
+    "DeviceLinkCurrentThroughput",
+    "DeviceLinkSpeed",
     "TriggerSelector",
     "TriggerMode",
     "TriggerSource",
     "DeviceTemperature",
+    "TLParamsLocked",
 ];
 
 /// Views waiting between two stages.
@@ -222,8 +237,11 @@ fn open_manifest(
 ) -> Result<SessionManifest> {
     let dir = options.dir.as_path();
     let (_, width, height) = camera.frame_format();
-    let features: BTreeMap<String, String> =
-        RECORDED_FEATURES.iter().filter_map(|f| camera.feature(f).ok().map(|v| (f.to_string(), v))).collect();
+    let features: BTreeMap<String, String> = RECORDED_FEATURES
+        .iter()
+        .filter(|f| camera.is_available(f))
+        .filter_map(|f| camera.feature(f).ok().map(|v| (f.to_string(), v)))
+        .collect();
     let stokes_unit = if options.exposures_us.len() > 1 {
         let shortest = options.exposures_us.iter().copied().fold(f64::INFINITY, f64::min);
         StokesUnit::HdrFullScale { shortest_exposure_us: shortest, gain_db: settings.gain_db }
@@ -248,6 +266,7 @@ fn open_manifest(
         dark: Vec::new(),
         views: Vec::new(),
         complete: false,
+        polarizer_cell: SENSOR_POLARIZER_CELL,
     };
     check_session_folder(dir, options.resume)?;
     if !options.resume {
@@ -442,28 +461,45 @@ fn process_views(
     options: &SessionOptions,
     darks: &[Option<RawFrame>],
 ) -> Result<()> {
-    let processor = FrameProcessor { saturation_aware: true, ..FrameProcessor::default() };
-    let (format, w, h) = frame_format;
+    let processor = session_processor();
     for grabbed in from_acquisition {
         let source = format!("view {}", grabbed.index);
-        let mut means = Vec::new();
-        for (frames, dark) in grabbed.frames.iter().zip(darks) {
-            let decoded: Vec<RawFrame> =
-                frames.iter().map(|b| RawFrame::decode(b, format, w, h, &source)).collect::<Result<_>>()?;
-            let mut mean = mean_frame(&decoded)?;
-            if let Some(dark) = dark {
-                subtract_dark(&mut mean, dark)?;
-            }
-            means.push(mean);
-        }
-        let frame = if means.len() > 1 { hdr::merge(&means, &options.exposures_us)? } else { means.remove(0) };
-        let processed = processor.process(&frame)?;
+        let processed = process_view(&processor, &grabbed.frames, frame_format, &options.exposures_us, darks, &source)?;
         let (saturated_fraction, mean_dop) = statistics(&processed);
         if to_writer.send(ProcessedView { grabbed, processed, saturated_fraction, mean_dop }).is_err() {
             break;
         }
     }
     Ok(())
+}
+
+/// How a session processes its frames: bilinear demosaicing, saturated angles dropped.
+fn session_processor() -> FrameProcessor {
+    FrameProcessor { saturation_aware: true, ..FrameProcessor::default() }
+}
+
+/// One view's frames (per exposure, the bytes of each frame) decoded, averaged, darks
+/// subtracted, brackets merged, processed. `source` names the view in errors.
+fn process_view(
+    processor: &FrameProcessor,
+    frames: &[Vec<Vec<u8>>],
+    (format, w, h): (PixelFormat, usize, usize),
+    exposures_us: &[f64],
+    darks: &[Option<RawFrame>],
+    source: &str,
+) -> Result<ProcessedFrame> {
+    let mut means = Vec::new();
+    for (frames, dark) in frames.iter().zip(darks) {
+        let decoded: Vec<RawFrame> =
+            frames.iter().map(|b| RawFrame::decode(b, format, w, h, source)).collect::<Result<_>>()?;
+        let mut mean = mean_frame(&decoded)?;
+        if let Some(dark) = dark {
+            subtract_dark(&mut mean, dark)?;
+        }
+        means.push(mean);
+    }
+    let frame = if means.len() > 1 { hdr::merge(&means, exposures_us)? } else { means.remove(0) };
+    processor.process(&frame)
 }
 
 /// Fraction of pixels with a saturated angle, and mean DoP over pixels above 5 % full scale.

@@ -67,7 +67,7 @@ impl Positioning {
 
     /// The turntable where the camera has one, else the operator.
     pub fn default_for(camera: &CameraDevice) -> Self {
-        if camera.has_feature("TurntablePosition") {
+        if camera.is_available("TurntablePosition") {
             Positioning::Turntable
         } else {
             Positioning::Interactive
@@ -104,8 +104,8 @@ impl Positioning {
 
     /// Cover (or uncover) the lens for dark frames.
     pub fn cap_lens(&self, camera: &CameraDevice, covered: bool) -> Result<()> {
-        if camera.has_feature("LensCap") {
-            return camera.set_feature("LensCap", if covered { "true" } else { "false" });
+        if camera.is_available("LensCap") {
+            return camera.write("LensCap", if covered { "true" } else { "false" }).map(|_| ());
         }
         prompt(if covered {
             "dark frames: cover the lens and press Enter"

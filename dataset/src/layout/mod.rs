@@ -99,14 +99,18 @@ pub fn write_scene(scene: &Scene, dir: &Path, layout: Layout) -> Result<()> {
     }
 }
 
-/// Copy the scene in `source` (either layout) into `destination` in `layout`; the destination
-/// must not exist or be empty. Returns the scene.
-pub fn convert_scene(source: &Path, destination: &Path, layout: Layout) -> Result<Scene> {
+/// Copy the scene in `source` (either layout) into `destination` in `layout`, its AoP mirrored
+/// with `mirror_aop` ([`crate::handedness::mirror_aop`]); the destination must not exist or be
+/// empty. Returns the scene.
+pub fn convert_scene(source: &Path, destination: &Path, layout: Layout, mirror_aop: bool) -> Result<Scene> {
     let occupied = std::fs::read_dir(destination).is_ok_and(|mut entries| entries.next().is_some());
     if occupied {
         return Err(Error::format(destination, "exists and is not empty; choose a new folder"));
     }
-    let scene = read_scene(source)?;
+    let mut scene = read_scene(source)?;
+    if mirror_aop {
+        crate::handedness::mirror_aop(&mut scene);
+    }
     write_scene(&scene, destination, layout)?;
     Ok(scene)
 }
