@@ -330,3 +330,35 @@ fn frames_lost_on_the_link_are_counted_and_grabbed_again() {
         assert!(std::fs::read(raw.join(format!("20000us_{k}.raw"))).unwrap() == first, "frame {k} differs");
     }
 }
+
+#[test]
+fn a_camera_left_with_gamma_and_a_mirrored_readout_is_put_right_and_its_state_recorded() {
+    let rig = Rig::new("RMVPLEFT01", 1, &["--left-with", "gamma,reverse-x,odd-offset,adc8", "--noise-free"]);
+    let out = run(capture_command("RMVPLEFT01", &rig.dir, &["--views", "1"]));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let features = SessionManifest::read(&rig.dir).unwrap().camera.features;
+    for (feature, value) in [
+        ("GammaEnable", "false"),
+        ("ReverseX", "false"),
+        ("ReverseY", "false"),
+        ("OffsetX", "0"),
+        ("AdcBitDepth", "Bit12"),
+        ("AcquisitionFrameRateEnable", "false"),
+        ("AcquisitionResultingFrameRate", "25"),
+        ("DeviceLinkThroughputLimit", "380000000"),
+        ("TLParamsLocked", "0"),
+    ] {
+        assert_eq!(features.get(feature).map(String::as_str), Some(value), "{feature}: {features:?}");
+    }
+    assert!(features["BlackLevel"].parse::<f64>().is_ok_and(|b| b > 0.0), "{features:?}");
+    drop(rig);
+
+    // Left mirrored with the readout locked, the camera cannot be put right: refused, nothing
+    // captured.
+    let rig = Rig::new("RMVPLOCK01", 1, &["--left-with", "reverse-x,locked-readout", "--noise-free"]);
+    let out = run(capture_command("RMVPLOCK01", &rig.dir, &["--views", "1"]));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(stderr.contains("ReverseX") && stderr.contains("locked") && stderr.contains("RMVPLOCK01"), "{stderr}");
+    assert!(!rig.dir.join("session.json").exists(), "nothing written: {stderr}");
+}

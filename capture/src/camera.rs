@@ -414,12 +414,20 @@ impl CameraDevice {
             }
             self.stream = Some(stream);
         }
+        // The host locks the transport-layer parameters while it streams (SFNC): FLIR cameras
+        // then lock the features that would change the payload.
+        if self.is_available("TLParamsLocked") {
+            self.set_integer("TLParamsLocked", 1)?;
+        }
         self.execute("AcquisitionStart")
     }
 
     /// Stop acquiring and return frames still queued to the pool.
     pub fn stop(&mut self) -> Result<()> {
         let result = self.execute("AcquisitionStop");
+        if self.is_available("TLParamsLocked") {
+            self.set_integer("TLParamsLocked", 0)?;
+        }
         if let Some(stream) = &self.stream {
             while let Some(buffer) = stream.timeout_pop_buffer(100_000) {
                 stream.push_buffer(buffer);

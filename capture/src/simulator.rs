@@ -10,6 +10,7 @@
 
 use crate::raw::PixelFormat;
 use crate::sensor::SensorModel;
+use crate::RawFrame;
 use crate::{Error, Result};
 use aravis_sys as ffi;
 use rmvp_calib::board::BoardOptions;
@@ -62,6 +63,40 @@ mod register {
     pub const TURNTABLE_REACHED: u32 = 0x1018;
     pub const LENS_CAP: u32 = 0x101c;
     pub const TURNTABLE_POSITIONS: u32 = 0x1020;
+    pub const GAMMA_ENABLE: u32 = 0x1024;
+    pub const REVERSE_X: u32 = 0x1028;
+    pub const REVERSE_Y: u32 = 0x102c;
+    pub const ADC_BIT_DEPTH: u32 = 0x1030;
+    pub const BLACK_LEVEL_PERCENT: u32 = 0x1034;
+    pub const READOUT_LOCKED: u32 = 0x1038;
+    pub const LINK_THROUGHPUT_LIMIT: u32 = 0x103c;
+    pub const OFFSET_X: u32 = 0x130;
+    pub const OFFSET_Y: u32 = 0x134;
+}
+
+/// The ADC depth of each `AdcBitDepth` entry's value (Bit8, Bit10, Bit12).
+const ADC_BITS: [u8; 3] = [8, 10, 12];
+/// The gamma `GammaEnable` applies: `v -> full (v / full)^GAMMA`.
+const GAMMA: f32 = 0.45;
+/// FLIR's default USB3 link limit, bytes a second.
+const LINK_THROUGHPUT_LIMIT: u32 = 380_000_000;
+
+/// How another program left the camera: the state rmvp must put right (or refuse) before it
+/// captures. The default is a camera fresh from its default user set.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LeftState {
+    /// `GammaEnable` on: samples no longer linear.
+    pub gamma: bool,
+    /// `ReverseX` on: the readout mirrored left to right (the mosaic's phase moves).
+    pub reverse_x: bool,
+    /// `ReverseY` on.
+    pub reverse_y: bool,
+    /// `OffsetX`: an odd one moves the mosaic's phase.
+    pub offset_x: u32,
+    /// `AdcBitDepth` at 8 bits under a deeper format.
+    pub adc_8_bits: bool,
+    /// `ReverseX` and `ReverseY` locked (as on a camera whose readout another setting holds).
+    pub readout_locked: bool,
 }
 
 /// Pixel formats the simulated (colour) camera can stream, with the codes it reports. BayerRG*
@@ -103,6 +138,8 @@ pub struct SimulatorOptions {
     pub lost_packet_ratio: f64,
     /// What stands in front of the camera.
     pub setup: SimulatedSetup,
+    /// How the camera was left by another program.
+    pub left: LeftState,
 }
 
 /// What the simulated camera looks at.
@@ -133,6 +170,7 @@ impl Default for SimulatorOptions {
             noise: true,
             lost_packet_ratio: 0.0,
             setup: SimulatedSetup::Turntable,
+            left: LeftState::default(),
         }
     }
 }
@@ -272,7 +310,7 @@ fn noise_seed(seed: u64, key: FrameKey) -> u64 {
 /// The last frame's inputs and their noise-free electrons (recomputed when any changes).
 #[derive(Default)]
 struct ExposureCache {
-    key: Option<FrameKey>,
+    key: Option<(FrameKey, Readout)>,
     electrons: Option<Arc<rmvp_dataset::Image<f32>>>,
     noise_free_bytes: Option<Arc<Vec<u8>>>,
 }
@@ -291,6 +329,59 @@ struct Shared {
     /// Rendering ahead runs here, at a lower scheduling priority than streaming: a busy
     /// renderer must not starve the thread that sends the frames.
     renderer: rayon::ThreadPool,
+}
+
+/// What the camera's readout settings do to a frame after the sensor: ADC depth, gamma,
+/// mirroring and the offset of the window.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+struct Readout {
+    adc_bits: u8,
+    gamma: bool,
+    reverse_x: bool,
+    reverse_y: bool,
+    offset_x: u32,
+    offset_y: u32,
+}
+
+impl Readout {
+    fn of(camera: &FakeCameraPtr) -> Self {
+        Self {
+            adc_bits: ADC_BITS.get(camera.read(register::ADC_BIT_DEPTH) as usize).copied().unwrap_or(12),
+            gamma: camera.read(register::GAMMA_ENABLE) != 0,
+            reverse_x: camera.read(register::REVERSE_X) != 0,
+            reverse_y: camera.read(register::REVERSE_Y) != 0,
+            offset_x: camera.read(register::OFFSET_X),
+            offset_y: camera.read(register::OFFSET_Y),
+        }
+    }
+
+    /// The frame as this readout delivers it. The window's offset moves the sensor under it
+    /// (the frame wraps round: the simulated sensor has no pixels outside it).
+    fn apply(&self, raw: &mut RawFrame) {
+        let bits = raw.bits;
+        let plain = Readout { adc_bits: self.adc_bits, ..Readout::default() };
+        if *self == plain && self.adc_bits >= bits.min(12) {
+            return;
+        }
+        let full = raw.full_scale();
+        // The sensor model's frames carry at most 12 ADC bits (16-bit frames are its own
+        // finer model): a shallower ADC drops the bits below its depth.
+        let drop = bits.min(12).saturating_sub(self.adc_bits);
+        let (w, h) = raw.pixels.size();
+        let source = raw.pixels.clone();
+        let (ox, oy) = (self.offset_x as usize % w, self.offset_y as usize % h);
+        for y in 0..h {
+            for x in 0..w {
+                let sx = if self.reverse_x { w - 1 - x } else { x };
+                let sy = if self.reverse_y { h - 1 - y } else { y };
+                let mut v = source.data()[((sy + oy) % h) * w + (sx + ox) % w];
+                if self.gamma {
+                    v = (f32::from(full) * (f32::from(v) / f32::from(full)).powf(GAMMA)).round() as u16;
+                }
+                raw.pixels.data_mut()[y * w + x] = v >> drop << drop;
+            }
+        }
+    }
 }
 
 /// A thread pool for rendering ahead whose threads run at nice 10 (Linux: per thread).
@@ -315,6 +406,7 @@ impl Shared {
         let exposure_us = self.camera.read(register::EXPOSURE_TIME_US);
         let gain_db = self.camera.read_f32(register::GAIN_DB);
         let capped = self.camera.read(register::LENS_CAP) != 0;
+        let readout = Readout::of(&self.camera);
         let sensor = SimulatedScene::sensor(exposure_us as f64, gain_db as f64, format.bits);
         let key = (pose, exposure_us, gain_db.to_bits(), format.bits as u32, capped);
         let frame = {
@@ -324,13 +416,17 @@ impl Shared {
             *next - 1
         };
         let mut cache = self.exposure.lock().expect("exposure cache");
-        if cache.key != Some(key) {
+        if cache.key != Some((key, readout)) {
             let stokes = self.poses.lock().expect("poses")[pose.min(self.scene.cameras.len() - 1)].clone();
             let electrons = match (stokes, capped) {
                 (Some(stokes), false) => sensor.electrons(&stokes),
                 _ => rmvp_dataset::Image::new(SENSOR_WIDTH, SENSOR_HEIGHT, 1),
             };
-            *cache = ExposureCache { key: Some(key), electrons: Some(Arc::new(electrons)), noise_free_bytes: None };
+            *cache = ExposureCache {
+                key: Some((key, readout)),
+                electrons: Some(Arc::new(electrons)),
+                noise_free_bytes: None,
+            };
         }
         if !self.noise {
             if let Some(bytes) = &cache.noise_free_bytes {
@@ -341,7 +437,8 @@ impl Shared {
         let noise_free = !self.noise;
         drop(cache);
         let model = if noise_free { sensor.noise_free() } else { sensor };
-        let raw = model.digitize(&electrons, noise_seed(self.seed, key), frame);
+        let mut raw = model.digitize(&electrons, noise_seed(self.seed, key), frame);
+        readout.apply(&mut raw);
         let bytes = Arc::new(raw.encode(format).expect("bits match the format"));
         if noise_free {
             self.exposure.lock().expect("exposure cache").noise_free_bytes = Some(bytes.clone());
@@ -498,11 +595,21 @@ impl SimulatedCamera {
             (register::TURNTABLE_REACHED, 0),
             (register::LENS_CAP, 0),
             (register::TURNTABLE_POSITIONS, n as u32),
+            (register::GAMMA_ENABLE, u32::from(config.left.gamma)),
+            (register::REVERSE_X, u32::from(config.left.reverse_x)),
+            (register::REVERSE_Y, u32::from(config.left.reverse_y)),
+            (register::OFFSET_X, config.left.offset_x),
+            (register::OFFSET_Y, 0),
+            (register::ADC_BIT_DEPTH, if config.left.adc_8_bits { 0 } else { 2 }),
+            (register::READOUT_LOCKED, u32::from(config.left.readout_locked)),
+            (register::LINK_THROUGHPUT_LIMIT, LINK_THROUGHPUT_LIMIT),
         ] {
             camera.write(address, value);
         }
         camera.write_f32(register::GAIN_DB, 0.0);
         camera.write_f32(register::TEMPERATURE_C, 36.0);
+        let black = SimulatedScene::sensor(REFERENCE_EXPOSURE_US, 0.0, 12).dark_offset / 4095.0;
+        camera.write_f32(register::BLACK_LEVEL_PERCENT, 100.0 * black);
 
         let shared = Arc::new(Shared {
             camera,

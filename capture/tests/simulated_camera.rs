@@ -3,7 +3,9 @@
 //! streamed format decoding to exactly what the sensor model makes of the rendered pose.
 
 use rmvp_capture::camera::{CameraDevice, CameraOptions, Grab};
-use rmvp_capture::simulator::{SimulatedCamera, SimulatedScene, SimulatorOptions, SENSOR_HEIGHT, SENSOR_WIDTH};
+use rmvp_capture::simulator::{
+    LeftState, SimulatedCamera, SimulatedScene, SimulatorOptions, SENSOR_HEIGHT, SENSOR_WIDTH,
+};
 use rmvp_capture::RawFrame;
 use std::sync::Mutex;
 use std::time::Duration;
@@ -132,4 +134,75 @@ fn the_sensor_noise_depends_on_the_frames_taken_at_a_setting_not_on_the_stream_b
     };
     assert_ne!(direct[0], direct[1], "two frames of one setting have their own noise");
     assert!(direct == after_another_setting, "the same setting's frames differ after other frames were streamed");
+}
+
+/// One noise-free frame of pose 0 at the default settings, from a camera left as `left`, after
+/// `configure`.
+fn configured_frame(serial: &str, left: LeftState) -> Result<(RawFrame, CameraDevice, SimulatedCamera), String> {
+    let sim = SimulatedCamera::start(&SimulatorOptions { left, ..config(serial, &[]) }).unwrap();
+    let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+    let format = camera.configure(&CameraOptions::default()).map_err(|e| e.to_string())?;
+    camera.start().unwrap();
+    let bytes = next_frame(&mut camera);
+    camera.stop().unwrap();
+    Ok((RawFrame::decode(&bytes, format, SENSOR_WIDTH, SENSOR_HEIGHT, serial).unwrap(), camera, sim))
+}
+
+#[test]
+fn a_camera_left_with_gamma_a_mirrored_readout_an_odd_offset_or_a_shallow_adc_is_put_right() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let (fresh, _, _) = configured_frame("RMVPLEFT01", LeftState::default()).unwrap();
+    let left = LeftState {
+        gamma: true,
+        reverse_x: true,
+        reverse_y: true,
+        offset_x: 1,
+        adc_8_bits: true,
+        ..LeftState::default()
+    };
+    let (frame, camera, _sim) = configured_frame("RMVPLEFT02", left).unwrap();
+    assert_eq!(frame.pixels, fresh.pixels, "the same frame as from a camera fresh from its defaults");
+    for (feature, value) in
+        [("GammaEnable", "false"), ("ReverseX", "false"), ("ReverseY", "false"), ("AdcBitDepth", "Bit12")]
+    {
+        assert_eq!(camera.feature(feature).unwrap(), value, "{feature}");
+    }
+    assert_eq!(camera.integer("OffsetX").unwrap() % 4, 0);
+
+    // The simulator does apply each of them: left alone, the frame is another.
+    camera.set_feature("ReverseX", "true").unwrap();
+    let mut camera = camera;
+    camera.start().unwrap();
+    let bytes = next_frame(&mut camera);
+    camera.stop().unwrap();
+    let format = rmvp_capture::PixelFormat::BAYER_RG_POLARIZED_12P;
+    let mirrored = RawFrame::decode(&bytes, format, SENSOR_WIDTH, SENSOR_HEIGHT, "mirrored").unwrap();
+    let row = |f: &RawFrame, y: usize| f.pixels.data()[y * SENSOR_WIDTH..(y + 1) * SENSOR_WIDTH].to_vec();
+    let mut reversed = row(&fresh, 1000);
+    reversed.reverse();
+    assert_eq!(row(&mirrored, 1000), reversed, "ReverseX mirrors each row");
+}
+
+#[test]
+fn a_mirrored_readout_that_is_locked_is_refused_by_name() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let left = LeftState { reverse_x: true, readout_locked: true, ..LeftState::default() };
+    let err = configured_frame("RMVPLOCK01", left).map(|_| ()).unwrap_err();
+    assert!(err.contains("RMVPLOCK01") && err.contains("ReverseX") && err.contains("locked"), "{err}");
+}
+
+#[test]
+fn the_frame_rate_is_set_after_the_exposure_that_bounds_it_and_read_back() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let sim = SimulatedCamera::start(&config("RMVPRATE01", &[])).unwrap();
+    let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+    // Left enabled at 70 frames/s by another program: an exposure of 20 ms still goes through.
+    camera.set_feature("AcquisitionFrameRateEnable", "true").unwrap();
+    camera.set_float("AcquisitionFrameRate", 70.0).unwrap();
+    let settings = CameraOptions { exposure_us: 20_000.0, frame_rate: Some(40.0), ..CameraOptions::default() };
+    camera.configure(&settings).unwrap();
+    assert!((camera.float("AcquisitionResultingFrameRate").unwrap() - 40.0).abs() < 1e-6);
+    // At 20 ms no more than 50 frames a second.
+    let err = camera.configure(&CameraOptions { frame_rate: Some(60.0), ..settings }).unwrap_err().to_string();
+    assert!(err.contains("60 frames/s") && err.contains("at most 50.000"), "{err}");
 }

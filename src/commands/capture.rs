@@ -8,7 +8,7 @@ use rmvp_capture::camera::{describe, list_devices, CameraDevice, CameraOptions};
 use rmvp_capture::preview::{serve, Preview};
 use rmvp_capture::session::positioning::Positioning;
 use rmvp_capture::session::{capture, check_session_folder, SessionOptions};
-use rmvp_capture::simulator::{SimulatedCamera, SimulatedSetup, SimulatorOptions};
+use rmvp_capture::simulator::{LeftState, SimulatedCamera, SimulatedSetup, SimulatorOptions};
 use rmvp_capture::PixelFormat;
 use rmvp_dataset::session::PositioningMode;
 use std::path::PathBuf;
@@ -240,6 +240,42 @@ pub struct SimulateCameraArgs {
     /// Fraction of stream packets to drop on purpose (frames then arrive incomplete).
     #[arg(long, default_value_t = SimulatorOptions::default().lost_packet_ratio)]
     pub lost_packets: f64,
+    /// Start as another program may have left the camera, comma-separated: what rmvp must put
+    /// right, or refuse, before it captures.
+    #[arg(long, value_enum, value_delimiter = ',')]
+    pub left_with: Vec<LeftWith>,
+}
+
+/// A state another program may leave a camera in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LeftWith {
+    /// Gamma on (`GammaEnable`).
+    Gamma,
+    /// The readout mirrored left to right (`ReverseX`).
+    ReverseX,
+    /// The readout mirrored top to bottom (`ReverseY`).
+    ReverseY,
+    /// `OffsetX` = 1: the mosaic's phase moved by a pixel.
+    OddOffset,
+    /// An 8-bit ADC (`AdcBitDepth`) under a 12-bit format.
+    Adc8,
+    /// `ReverseX` and `ReverseY` locked.
+    LockedReadout,
+}
+
+impl LeftWith {
+    /// The simulator's state with all of `list`.
+    fn state(list: &[LeftWith]) -> LeftState {
+        let has = |w: LeftWith| list.contains(&w);
+        LeftState {
+            gamma: has(LeftWith::Gamma),
+            reverse_x: has(LeftWith::ReverseX),
+            reverse_y: has(LeftWith::ReverseY),
+            offset_x: u32::from(has(LeftWith::OddOffset)),
+            adc_8_bits: has(LeftWith::Adc8),
+            readout_locked: has(LeftWith::LockedReadout),
+        }
+    }
 }
 
 /// Run a simulated camera until killed.
@@ -254,6 +290,7 @@ pub fn simulate_camera(args: SimulateCameraArgs) -> Result<()> {
         noise: !args.noise_free,
         lost_packet_ratio: args.lost_packets,
         setup: args.scene.setup(),
+        left: LeftWith::state(&args.left_with),
         ..SimulatorOptions::default()
     };
     if !args.pixel_formats.is_empty() {
