@@ -362,3 +362,35 @@ fn a_camera_left_with_gamma_and_a_mirrored_readout_is_put_right_and_its_state_re
     assert!(stderr.contains("ReverseX") && stderr.contains("locked") && stderr.contains("RMVPLOCK01"), "{stderr}");
     assert!(!rig.dir.join("session.json").exists(), "nothing written: {stderr}");
 }
+
+#[test]
+fn sessions_run_against_real_flir_descriptions_as_against_our_own() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/genicam");
+    let session = |serial: &str, camera_args: &[&str]| {
+        let rig = Rig::new(serial, 2, &[&["--noise-free", "--left-with", "gamma,reverse-x"], camera_args].concat());
+        let out = run(capture_command(serial, &rig.dir, &["--views", "2"]));
+        assert!(out.status.success(), "{camera_args:?}: {}", String::from_utf8_lossy(&out.stderr));
+        let manifest = SessionManifest::read(&rig.dir).unwrap();
+        manifest.verify(&rig.dir).unwrap();
+        let stokes = std::fs::read(rig.dir.join("views/001/view_stokes.exr")).unwrap();
+        (manifest, stokes)
+    };
+    let (_, ours) = session("RMVPDESC00", &[]);
+    for (k, file) in ["FLIR-BFS-PGE-23S6C.xml", "PGR_BFS_U3_51S5M.xml"].iter().enumerate() {
+        let description = root.join(file);
+        let (manifest, stokes) =
+            session(&format!("RMVPDESC0{}", k + 1), &["--description", description.to_str().unwrap()]);
+        assert!(manifest.complete, "{file}");
+        assert!(manifest.camera.identity.model.starts_with("Simulated BFS_"), "{file}: {:?}", manifest.camera.identity);
+        let features = &manifest.camera.features;
+        eprintln!("{file}: {} {features:?}", manifest.camera.pixel_format);
+        for (feature, value) in [("GammaEnable", "false"), ("ReverseX", "false"), ("ExposureTime", "20000")] {
+            assert_eq!(features.get(feature).map(String::as_str), Some(value), "{file}: {feature}");
+        }
+        // At 20 ms the camera runs at 50 frames a second, and the link carries 50 frames.
+        let rate: f64 = features["AcquisitionResultingFrameRate"].parse().unwrap();
+        assert!((rate - 50.0).abs() < 0.01, "{file}: {rate}");
+        assert_eq!(features["DeviceLinkThroughputLimit"], "380000000", "{file}");
+        assert!(stokes == ours, "{file}: the view's Stokes differ from the session against rmvp's own description");
+    }
+}

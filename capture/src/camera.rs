@@ -409,6 +409,18 @@ impl CameraDevice {
                 .create_stream()
                 .map_err(|e| Error::camera(&self.name, format!("cannot open a stream: {e}")))?;
             let payload = self.camera.payload().map_err(|e| Error::camera(&self.name, format!("PayloadSize: {e}")))?;
+            let frame = self.format.frame_bytes(self.width, self.height);
+            if (payload as usize) < frame {
+                return Err(Error::camera(
+                    &self.name,
+                    format!(
+                        "PayloadSize is {payload} bytes, less than a {}x{} {} frame ({frame})",
+                        self.width,
+                        self.height,
+                        self.format.name()
+                    ),
+                ));
+            }
             for _ in 0..STREAM_BUFFERS {
                 stream.push_buffer(aravis::Buffer::new_allocate(payload as usize));
             }
@@ -451,12 +463,11 @@ impl CameraDevice {
         };
         let status = buffer.status();
         let grab = if status == aravis::BufferStatus::Success {
-            let (data, size) = buffer.data();
+            let (data, received) = buffer.data();
             let expected = self.format.frame_bytes(self.width, self.height);
-            let n = if size == 0 { expected } else { size.min(expected) };
-            // SAFETY: aravis owns `n <= allocated` readable bytes at `data` until we push the
-            // buffer back below.
-            Grab::Frame(unsafe { std::slice::from_raw_parts(data, n) }.to_vec())
+            // SAFETY: aravis owns `received` readable bytes at `data` until we push the buffer
+            // back below. A short frame is returned short (the caller counts it as dropped).
+            Grab::Frame(unsafe { std::slice::from_raw_parts(data, received.min(expected)) }.to_vec())
         } else {
             Grab::Dropped(format!("{status:?}"))
         };

@@ -8,6 +8,9 @@
 //! `TurntablePositionReached`) and a lens cap (`LensCap`) are extra features of the simulated
 //! rig; frames show the pose the turntable has reached.
 
+mod firmware;
+pub mod served;
+
 use crate::raw::PixelFormat;
 use crate::sensor::SensorModel;
 use crate::RawFrame;
@@ -28,8 +31,11 @@ use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-/// The GenICam XML of the simulated camera; `{PIXEL_FORMATS}` stands for its enumeration entries.
+/// The GenICam XML of the simulated camera; `{PIXEL_FORMATS}` stands for its enumeration
+/// entries, `{RIG}` for [`RIG_XML`].
 const XML_TEMPLATE: &str = include_str!("../genicam/simulated-bfs-u3-51s5pc.xml");
+/// The simulated rig's own features (turntable, lens cap), in every description it serves.
+const RIG_XML: &str = include_str!("../genicam/simulated-rig.xml");
 
 /// Sensor width of the BFS-U3-51S5PC-C (pixels).
 pub const SENSOR_WIDTH: usize = 2448;
@@ -52,6 +58,7 @@ mod register {
     pub const SENSOR_HEIGHT: u32 = 0x118;
     pub const SENSOR_WIDTH: u32 = 0x11c;
     pub const EXPOSURE_TIME_US: u32 = 0x120;
+    pub const ACQUISITION: u32 = 0x124;
     pub const PIXEL_FORMAT: u32 = 0x128;
     pub const FRAME_PERIOD_US: u32 = 0x138;
     pub const EXPOSURE_AUTO: u32 = 0x1000;
@@ -140,6 +147,9 @@ pub struct SimulatorOptions {
     pub setup: SimulatedSetup,
     /// How the camera was left by another program.
     pub left: LeftState,
+    /// A real camera's GenICam description to serve instead of rmvp's own (a FLIR Blackfly S
+    /// file, [`served`]).
+    pub description: Option<PathBuf>,
 }
 
 /// What the simulated camera looks at.
@@ -171,6 +181,7 @@ impl Default for SimulatorOptions {
             lost_packet_ratio: 0.0,
             setup: SimulatedSetup::Turntable,
             left: LeftState::default(),
+            description: None,
         }
     }
 }
@@ -272,23 +283,10 @@ impl FakeCameraPtr {
         unsafe { ffi::arv_fake_camera_write_register(self.0, address, value) };
     }
 
-    fn read_f32(&self, address: u32) -> f32 {
-        let mut bytes = [0u8; 4];
-        // SAFETY: 4 bytes into a 4-byte buffer.
-        unsafe { ffi::arv_fake_camera_read_memory(self.0, address, 4, bytes.as_mut_ptr().cast()) };
-        f32::from_be_bytes(bytes)
-    }
-
-    fn write_f32(&self, address: u32, value: f32) {
-        let mut bytes = value.to_be_bytes();
-        // SAFETY: as above.
-        unsafe { ffi::arv_fake_camera_write_memory(self.0, address, 4, bytes.as_mut_ptr().cast()) };
-    }
-
-    fn write_string(&self, address: u32, value: &str) {
-        let mut bytes = value.as_bytes().to_vec();
-        bytes.push(0);
-        // SAFETY: the string registers are 32 bytes; callers pass shorter strings.
+    fn write_bytes(&self, address: u32, bytes: &[u8]) {
+        let mut bytes = bytes.to_vec();
+        // SAFETY: the address and length come from the description, inside the fake camera's
+        // memory (aravis refuses writes past it).
         unsafe { ffi::arv_fake_camera_write_memory(self.0, address, bytes.len() as u32, bytes.as_mut_ptr().cast()) };
     }
 }
@@ -329,6 +327,10 @@ struct Shared {
     /// Rendering ahead runs here, at a lower scheduling priority than streaming: a busy
     /// renderer must not starve the thread that sends the frames.
     renderer: rayon::ThreadPool,
+    /// Where the camera's settings live and what its firmware keeps current.
+    firmware: firmware::Firmware,
+    /// The pixel formats it streams, with the codes its description gives them.
+    formats: Vec<(String, u32)>,
 }
 
 /// What the camera's readout settings do to a frame after the sensor: ADC depth, gamma,
@@ -344,17 +346,6 @@ struct Readout {
 }
 
 impl Readout {
-    fn of(camera: &FakeCameraPtr) -> Self {
-        Self {
-            adc_bits: ADC_BITS.get(camera.read(register::ADC_BIT_DEPTH) as usize).copied().unwrap_or(12),
-            gamma: camera.read(register::GAMMA_ENABLE) != 0,
-            reverse_x: camera.read(register::REVERSE_X) != 0,
-            reverse_y: camera.read(register::REVERSE_Y) != 0,
-            offset_x: camera.read(register::OFFSET_X),
-            offset_y: camera.read(register::OFFSET_Y),
-        }
-    }
-
     /// The frame as this readout delivers it. The window's offset moves the sensor under it
     /// (the frame wraps round: the simulated sensor has no pixels outside it).
     fn apply(&self, raw: &mut RawFrame) {
@@ -403,10 +394,10 @@ impl Shared {
     /// The bytes of the next frame in `format`, from the current registers.
     fn frame(&self, format: PixelFormat) -> Arc<Vec<u8>> {
         let pose = self.camera.read(register::TURNTABLE_REACHED) as usize;
-        let exposure_us = self.camera.read(register::EXPOSURE_TIME_US);
-        let gain_db = self.camera.read_f32(register::GAIN_DB);
+        let exposure_us = self.firmware.exposure_us(&self.camera);
+        let gain_db = self.firmware.gain_db(&self.camera);
         let capped = self.camera.read(register::LENS_CAP) != 0;
-        let readout = Readout::of(&self.camera);
+        let readout = self.firmware.readout(&self.camera);
         let sensor = SimulatedScene::sensor(exposure_us as f64, gain_db as f64, format.bits);
         let key = (pose, exposure_us, gain_db.to_bits(), format.bits as u32, capped);
         let frame = {
@@ -457,7 +448,6 @@ impl Shared {
 
     /// Move the turntable when asked, render ahead, and warm the sensor up.
     fn run_turntable(&self) {
-        let start = Instant::now();
         let n = self.scene.cameras.len();
         while !self.stop.load(Ordering::Relaxed) {
             let target = self.camera.read(register::TURNTABLE_POSITION) as usize;
@@ -470,10 +460,25 @@ impl Shared {
                 self.ensure_rendered(next);
                 continue;
             }
-            let minutes = start.elapsed().as_secs_f32() / 60.0;
-            self.camera.write_f32(register::TEMPERATURE_C, 36.0 + 6.0 * (1.0 - (-minutes / 10.0).exp()));
             std::thread::sleep(Duration::from_millis(10));
         }
+    }
+
+    /// Warm the sensor up and keep the firmware's registers current, until stopped.
+    fn run_firmware(&self) {
+        let start = Instant::now();
+        while !self.stop.load(Ordering::Relaxed) {
+            self.firmware_tick(start);
+            std::thread::sleep(Duration::from_millis(5));
+        }
+    }
+
+    fn firmware_tick(&self, start: Instant) {
+        let minutes = start.elapsed().as_secs_f64() / 60.0;
+        self.firmware.set_temperature(&self.camera, 36.0 + 6.0 * (1.0 - (-minutes / 10.0).exp()));
+        // SAFETY: valid camera pointer.
+        let payload = unsafe { ffi::arv_fake_camera_get_payload(self.camera.0) };
+        self.firmware.tick(&self.camera, payload as u64);
     }
 }
 
@@ -492,7 +497,8 @@ unsafe extern "C" fn fill_frame(
 ) {
     // SAFETY: `data` is the `Shared` of the running `SimulatedCamera` (see `start`).
     let shared = unsafe { &*(data as *const Shared) };
-    let format = PIXEL_FORMATS.iter().find(|(_, c)| *c == code).and_then(|(name, _)| PixelFormat::from_name(name).ok());
+    let format =
+        shared.formats.iter().find(|(_, c)| *c == code).and_then(|(name, _)| PixelFormat::from_name(name).ok());
     let frame = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| format.map(|f| shared.frame(f))));
     // The allocated size is the payload (the received size stays 0 with a custom fill).
     // SAFETY: valid camera pointer.
@@ -514,11 +520,66 @@ unsafe extern "C" fn fill_frame(
     }
 }
 
+/// The GenICam description a simulated camera serves, what its registers start with, and the
+/// firmware that drives them.
+struct Description {
+    xml: String,
+    formats: Vec<(String, u32)>,
+    /// Register contents (address, bytes) besides the fake camera's own.
+    registers: Vec<(u32, Vec<u8>)>,
+    firmware: firmware::Firmware,
+}
+
+impl Description {
+    /// rmvp's own description of the BFS-U3-51S5PC-C's features.
+    fn own(config: &SimulatorOptions) -> Self {
+        let formats: Vec<(String, u32)> =
+            config.pixel_formats.iter().map(|n| (n.clone(), format_code(n).expect("checked"))).collect();
+        let entries: String = formats
+            .iter()
+            .map(|(n, code)| {
+                format!("\t\t<EnumEntry Name=\"{n}\" NameSpace=\"Standard\">\n\t\t\t<Value>{code}</Value>\n\t\t</EnumEntry>\n")
+            })
+            .collect();
+        let xml = XML_TEMPLATE.replace("{PIXEL_FORMATS}", &entries).replace("{RIG}", RIG_XML);
+        let black = SimulatedScene::sensor(REFERENCE_EXPOSURE_US, 0.0, 12).dark_offset / 4095.0;
+        let left = &config.left;
+        let mut registers: Vec<(u32, Vec<u8>)> = [
+            (register::EXPOSURE_AUTO, 2),
+            (register::GAIN_AUTO, 2),
+            (register::FRAME_RATE_ENABLE, 0),
+            (register::READOUT_LOCKED, u32::from(left.readout_locked)),
+            (register::LINK_THROUGHPUT_LIMIT, LINK_THROUGHPUT_LIMIT),
+        ]
+        .into_iter()
+        .map(|(address, value)| (address, value.to_be_bytes().to_vec()))
+        .collect();
+        registers.push((register::BLACK_LEVEL_PERCENT, (100.0 * black).to_be_bytes().to_vec()));
+        let strings = [
+            (register::VENDOR_NAME, "rmvp"),
+            (register::MODEL_NAME, "Simulated BFS-U3-51S5PC-C"),
+            (register::FIRMWARE_VERSION, concat!("rmvp-sim ", env!("CARGO_PKG_VERSION"))),
+        ];
+        registers.extend(strings.map(|(address, text)| (address, [text.as_bytes(), &[0]].concat())));
+        Self { xml, formats, registers, firmware: firmware::Firmware::own() }
+    }
+
+    /// A real camera's description ([`served`]), offering the formats of `config` it lists.
+    fn served(path: &std::path::Path, config: &SimulatorOptions) -> Result<Self> {
+        let streamable: Vec<&str> = config.pixel_formats.iter().map(String::as_str).collect();
+        let served = served::ServedDescription::load(path, &streamable, RIG_XML)?;
+        let firmware = firmware::Firmware::flir(&served).map_err(|e| Error::in_file(path, e.to_string()))?;
+        let registers = firmware::flir_defaults(&served, served.pixel_formats[0].1, &config.serial, &config.left);
+        Ok(Self { xml: served.xml.clone(), formats: served.pixel_formats.clone(), registers, firmware })
+    }
+}
+
 /// A running simulated camera; it stops when dropped.
 pub struct SimulatedCamera {
     gv: *mut ffi::ArvGvFakeCamera,
     shared: Arc<Shared>,
     turntable: Option<JoinHandle<()>>,
+    firmware: Option<JoinHandle<()>>,
     /// Serial number to open it by.
     pub serial: String,
 }
@@ -534,21 +595,16 @@ impl SimulatedCamera {
                 config.pixel_formats
             )));
         }
-        let entries: String = config
-            .pixel_formats
-            .iter()
-            .map(|n| {
-                let code = format_code(n).expect("checked");
-                format!("\t\t<EnumEntry Name=\"{n}\" NameSpace=\"Standard\">\n\t\t\t<Value>{code}</Value>\n\t\t</EnumEntry>\n")
-            })
-            .collect();
+        let description = match &config.description {
+            None => Description::own(config),
+            Some(path) => Description::served(path, config)?,
+        };
         let xml = tempfile::Builder::new()
             .prefix("rmvp-simulated-camera")
             .suffix(".xml")
             .tempfile()
             .map_err(|e| Error::Unsupported(format!("cannot write the simulated camera's GenICam file: {e}")))?;
-        std::fs::write(xml.path(), XML_TEMPLATE.replace("{PIXEL_FORMATS}", &entries))
-            .map_err(|e| rmvp_dataset::Error::io(xml.path(), e))?;
+        std::fs::write(xml.path(), &description.xml).map_err(|e| rmvp_dataset::Error::io(xml.path(), e))?;
 
         let scene = SimulatedScene::new(config)?;
         let n = scene.cameras.len();
@@ -577,39 +633,24 @@ impl SimulatedCamera {
         }
         // SAFETY: `gv` is valid; the fake camera belongs to it.
         let camera = FakeCameraPtr(unsafe { ffi::arv_gv_fake_camera_get_fake_camera(gv) });
-        camera.write_string(register::VENDOR_NAME, "rmvp");
-        camera.write_string(register::MODEL_NAME, "Simulated BFS-U3-51S5PC-C");
-        camera.write_string(register::FIRMWARE_VERSION, concat!("rmvp-sim ", env!("CARGO_PKG_VERSION")));
         for (address, value) in [
             (register::SENSOR_WIDTH, SENSOR_WIDTH as u32),
             (register::SENSOR_HEIGHT, SENSOR_HEIGHT as u32),
             (register::WIDTH, SENSOR_WIDTH as u32),
             (register::HEIGHT, SENSOR_HEIGHT as u32),
-            (register::PIXEL_FORMAT, format_code(&config.pixel_formats[0]).expect("checked")),
-            (register::EXPOSURE_TIME_US, REFERENCE_EXPOSURE_US as u32),
+            (register::PIXEL_FORMAT, description.formats[0].1),
             (register::FRAME_PERIOD_US, 1_000_000 / 25),
-            (register::EXPOSURE_AUTO, 2),
-            (register::GAIN_AUTO, 2),
-            (register::FRAME_RATE_ENABLE, 0),
             (register::TURNTABLE_POSITION, 0),
             (register::TURNTABLE_REACHED, 0),
             (register::LENS_CAP, 0),
             (register::TURNTABLE_POSITIONS, n as u32),
-            (register::GAMMA_ENABLE, u32::from(config.left.gamma)),
-            (register::REVERSE_X, u32::from(config.left.reverse_x)),
-            (register::REVERSE_Y, u32::from(config.left.reverse_y)),
-            (register::OFFSET_X, config.left.offset_x),
-            (register::OFFSET_Y, 0),
-            (register::ADC_BIT_DEPTH, if config.left.adc_8_bits { 0 } else { 2 }),
-            (register::READOUT_LOCKED, u32::from(config.left.readout_locked)),
-            (register::LINK_THROUGHPUT_LIMIT, LINK_THROUGHPUT_LIMIT),
         ] {
             camera.write(address, value);
         }
-        camera.write_f32(register::GAIN_DB, 0.0);
-        camera.write_f32(register::TEMPERATURE_C, 36.0);
-        let black = SimulatedScene::sensor(REFERENCE_EXPOSURE_US, 0.0, 12).dark_offset / 4095.0;
-        camera.write_f32(register::BLACK_LEVEL_PERCENT, 100.0 * black);
+        for (address, bytes) in &description.registers {
+            camera.write_bytes(*address, bytes);
+        }
+        description.firmware.start_as(&camera, &config.left);
 
         let shared = Arc::new(Shared {
             camera,
@@ -621,6 +662,8 @@ impl SimulatedCamera {
             seed: config.seed,
             stop: AtomicBool::new(false),
             renderer: background_pool()?,
+            firmware: description.firmware,
+            formats: description.formats,
         });
         shared.ensure_rendered(0);
         // SAFETY: `shared` lives in the returned value, which stops the camera (and with it
@@ -637,7 +680,13 @@ impl SimulatedCamera {
             .name("simulated turntable".into())
             .spawn(move || worker.run_turntable())
             .expect("spawn a thread");
-        Ok(Self { gv, shared, turntable: Some(turntable), serial: config.serial.clone() })
+        shared.firmware_tick(Instant::now());
+        let worker = shared.clone();
+        let firmware = std::thread::Builder::new()
+            .name("simulated firmware".into())
+            .spawn(move || worker.run_firmware())
+            .expect("spawn a thread");
+        Ok(Self { gv, shared, turntable: Some(turntable), firmware: Some(firmware), serial: config.serial.clone() })
     }
 
     /// Number of turntable poses.
@@ -661,7 +710,7 @@ impl SimulatedCamera {
 impl Drop for SimulatedCamera {
     fn drop(&mut self) {
         self.shared.stop.store(true, Ordering::Relaxed);
-        if let Some(thread) = self.turntable.take() {
+        for thread in [self.turntable.take(), self.firmware.take()].into_iter().flatten() {
             let _ = thread.join();
         }
         // SAFETY: we own the one reference; this stops aravis's threads (no callback runs

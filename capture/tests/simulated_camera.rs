@@ -206,3 +206,41 @@ fn the_frame_rate_is_set_after_the_exposure_that_bounds_it_and_read_back() {
     let err = camera.configure(&CameraOptions { frame_rate: Some(60.0), ..settings }).unwrap_err().to_string();
     assert!(err.contains("60 frames/s") && err.contains("at most 50.000"), "{err}");
 }
+
+/// The real FLIR descriptions of `shared/genicam`.
+fn flir_descriptions() -> Vec<std::path::PathBuf> {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/genicam");
+    let mut files: Vec<_> = std::fs::read_dir(&root)
+        .unwrap_or_else(|e| panic!("{}: {e}", root.display()))
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "xml"))
+        .collect();
+    files.sort();
+    assert_eq!(files.len(), 2, "{files:?}");
+    files
+}
+
+#[test]
+fn real_flir_descriptions_are_served_and_driven_as_the_camera() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    for (k, path) in flir_descriptions().iter().enumerate() {
+        let serial = format!("RMVPFLIR0{k}");
+        let left = LeftState { gamma: true, reverse_x: true, ..LeftState::default() };
+        let config = SimulatorOptions { description: Some(path.clone()), left, ..config(&serial, &[]) };
+        let sim = SimulatedCamera::start(&config).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+        eprintln!("{}: {:?}, formats {:?}", path.display(), camera.identity(), camera.offered_pixel_formats().unwrap());
+        assert_eq!(camera.identity().serial, serial);
+        let format = camera.configure(&CameraOptions::default()).unwrap();
+        for (feature, value) in [("GammaEnable", "false"), ("ReverseX", "false"), ("ExposureAuto", "Off")] {
+            assert_eq!(camera.feature(feature).unwrap(), value, "{}: {feature}", path.display());
+        }
+        camera.start().unwrap();
+        let bytes = next_frame(&mut camera);
+        camera.stop().unwrap();
+        let frame = RawFrame::decode(&bytes, format, SENSOR_WIDTH, SENSOR_HEIGHT, &serial).unwrap();
+        let truth = SimulatedScene::new(&config).unwrap().render(0);
+        let model = SimulatedScene::sensor(20_000.0, 0.0, format.bits).noise_free();
+        assert!(frame.pixels == model.digitize(&model.electrons(&truth), 0, 0).pixels, "{}", path.display());
+    }
+}

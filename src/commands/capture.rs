@@ -70,6 +70,10 @@ pub struct Args {
     /// Simulated camera: object mesh (PLY/OBJ; default: the built-in spot).
     #[arg(long, requires = "simulated")]
     pub mesh: Option<PathBuf>,
+    /// Simulated camera: serve a real camera's GenICam description (a FLIR Blackfly S XML
+    /// file) instead of rmvp's own.
+    #[arg(long, requires = "simulated")]
+    pub description: Option<PathBuf>,
     /// Simulated camera: what it looks at.
     #[command(flatten)]
     pub scene: SetupArgs,
@@ -86,6 +90,7 @@ pub fn run(args: Args) -> Result<()> {
             views: args.views,
             mesh: args.mesh.clone(),
             setup: args.scene.setup(),
+            description: args.description.clone(),
             ..SimulatorOptions::default()
         };
         eprintln!("starting the simulated camera {} (rendering its first view)", config.serial);
@@ -244,6 +249,10 @@ pub struct SimulateCameraArgs {
     /// right, or refuse, before it captures.
     #[arg(long, value_enum, value_delimiter = ',')]
     pub left_with: Vec<LeftWith>,
+    /// Serve a real camera's GenICam description (a FLIR Blackfly S XML file) instead of
+    /// rmvp's own.
+    #[arg(long)]
+    pub description: Option<PathBuf>,
 }
 
 /// A state another program may leave a camera in.
@@ -291,6 +300,7 @@ pub fn simulate_camera(args: SimulateCameraArgs) -> Result<()> {
         lost_packet_ratio: args.lost_packets,
         setup: args.scene.setup(),
         left: LeftWith::state(&args.left_with),
+        description: args.description,
         ..SimulatorOptions::default()
     };
     if !args.pixel_formats.is_empty() {
