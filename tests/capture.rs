@@ -394,3 +394,25 @@ fn sessions_run_against_real_flir_descriptions_as_against_our_own() {
         assert!(stokes == ours, "{file}: the view's Stokes differ from the session against rmvp's own description");
     }
 }
+
+#[test]
+fn cameras_lists_what_each_camera_supports() {
+    let description = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/genicam/FLIR-BFS-PGE-23S6C.xml");
+    let _rig = Rig::new("RMVPLIST01", 1, &["--noise-free", "--description", description.to_str().unwrap()]);
+    let out = run({
+        let mut command = Command::new(env!("CARGO_BIN_EXE_rmvp"));
+        command.arg("cameras");
+        command
+    });
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(stdout.contains("RMVPLIST01") && stdout.contains("Simulated BFS_PGE_23S6"), "{stdout}");
+    assert!(
+        stdout.contains("pixel formats rmvp reads: BayerRG8") && stdout.contains("BayerRGPolarized12p"),
+        "{stdout}"
+    );
+    for line in ["GammaEnable", "ReverseX", "AdcBitDepth", "AcquisitionResultingFrameRate", "DeviceLinkThroughputLimit"]
+    {
+        assert!(stdout.lines().any(|l| l.trim_start().starts_with(line)), "{line}: {stdout}");
+    }
+}

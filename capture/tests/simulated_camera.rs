@@ -242,5 +242,23 @@ fn real_flir_descriptions_are_served_and_driven_as_the_camera() {
         let truth = SimulatedScene::new(&config).unwrap().render(0);
         let model = SimulatedScene::sensor(20_000.0, 0.0, format.bits).noise_free();
         assert!(frame.pixels == model.digitize(&model.electrons(&truth), 0, 0).pixels, "{}", path.display());
+
+        // The camera's own locks: the pixel format is locked while the host streams
+        // (`TLParamsLocked`), free again after.
+        camera.start().unwrap();
+        let err = camera.write("PixelFormat", "BayerRG8").unwrap_err().to_string();
+        assert!(err.contains("PixelFormat") && err.contains("locked"), "{}: {err}", path.display());
+        camera.stop().unwrap();
+        camera.write("PixelFormat", &format.name()).unwrap();
+        // The frame rate's maximum follows the exposure (the firmware updates it within a few
+        // milliseconds of a new exposure): 50 frames/s at 20 ms.
+        std::thread::sleep(Duration::from_millis(50));
+        let rate = |frame_rate| CameraOptions { frame_rate: Some(frame_rate), ..CameraOptions::default() };
+        let err = camera.configure(&rate(60.0)).unwrap_err().to_string();
+        assert!(err.contains("at most 50.000"), "{}: {err}", path.display());
+        camera.configure(&rate(30.0)).unwrap();
+        std::thread::sleep(Duration::from_millis(50));
+        let resulting = camera.float("AcquisitionResultingFrameRate").unwrap();
+        assert!((resulting - 30.0).abs() < 0.01, "{}: {resulting}", path.display());
     }
 }
