@@ -243,6 +243,15 @@ fn session_views_that_would_escape_repeat_or_be_missing_are_refused() {
     let none = session_with_views(tmp.path(), "[]");
     refused(&["masks", s(&none), "-o", s(&out)], &["session.json: lists no complete view"]);
     assert!(!out.exists());
+
+    // A mask correction named for no view of the session is refused by name, not left unused.
+    let two = session_with_views(tmp.path(), &format!("[{}, {}]", view("000"), view("001")));
+    let corrections = tmp.path().join("corrections");
+    std::fs::create_dir_all(&corrections).unwrap();
+    std::fs::copy(mask_source(), corrections.join("007.png")).unwrap();
+    let args = ["masks", s(&two), "--method", "threshold", "--corrections", s(&corrections), "-o", s(&out)];
+    refused(&args, &["corrections/007.png: a correction for no view of the session"]);
+    assert!(!out.exists());
 }
 
 #[test]

@@ -248,9 +248,42 @@ fn colmap_models_of_a_default_run_import_and_the_dataset_is_undistorted() {
             Some(_) => assert!(off < 0.4 * off_captured && s0 < 0.9 * s0_captured, "{model}"),
         }
     }
+    // Imported cameras that cannot be this session's are refused by name: two images that would
+    // pose one view, a lens that cannot be undone, a nerfstudio camera of another size.
+    let dir = tmp.path().join("PINHOLE");
+    let (session, model_dir) = (dir.join("session"), dir.join("sparse/0"));
+    let import = |from: &Path| {
+        fails(&["poses", s(&session), "--method", "import", "--from", s(from), "-o", s(&dir.join("p.json"))])
+    };
+    let twice = dir.join("twice");
+    rmvp_testkit::copy_tree(&model_dir, &twice);
+    let images = std::fs::read_to_string(twice.join("images.txt")).unwrap();
+    let first = images.lines().next().unwrap().replacen("000.png", "cam1/000.png", 1).replacen("1 ", "99 ", 1);
+    std::fs::write(twice.join("images.txt"), format!("{images}{first}\n\n")).unwrap();
+    let err = import(&twice);
+    assert!(err.contains("000.png and cam1/000.png: both would pose view 000"), "{err}");
+    let [f, c] = [source.views[0].camera.k[(0, 0)], source.views[0].camera.k[(0, 2)]];
+    for k1 in ["nan", "-1000000"] {
+        let lens = dir.join(format!("lens{k1}"));
+        colmap_model(&lens, "SIMPLE_RADIAL", &[f, c, c, 0.0]);
+        let cameras = std::fs::read_to_string(lens.join("cameras.txt")).unwrap();
+        let (head, _) = cameras.trim_end().rsplit_once(' ').unwrap();
+        std::fs::write(lens.join("cameras.txt"), format!("{head} {k1}\n")).unwrap();
+        let err = import(&lens);
+        assert!(err.contains("distortion"), "k1 = {k1}: {err}");
+    }
+    let exported = dir.join("exported");
+    ok(&["dataset", "export", s(&dir.join("dataset/rmvp")), "--format", "nerfstudio", "-o", s(&exported)]);
+    let transforms = exported.join("transforms.json");
+    let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&transforms).unwrap()).unwrap();
+    json["w"] = 4096.into();
+    json["h"] = 4096.into();
+    std::fs::write(&transforms, serde_json::to_string(&json).unwrap()).unwrap();
+    let err = import(&transforms);
+    assert!(err.contains("transforms.json") && err.contains("was 4096x4096 pixels"), "{err}");
+
     // A build stopped before its end (its record says so) resumes only with the options it was
     // started with; each changed one is named, the reference's included.
-    let dir = tmp.path().join("PINHOLE");
     let (session, dataset) = (dir.join("session"), dir.join("dataset"));
     let record = dataset.join("build.json");
     let mut json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&record).unwrap()).unwrap();

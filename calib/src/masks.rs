@@ -354,11 +354,36 @@ pub fn mask_picture(s0: &Image<f32>, mask: &Image<u8>) -> Image<u8> {
     downsample(&picture, w.div_ceil(320))
 }
 
+/// Every picture in a corrections folder must be named for a view of the session: a correction
+/// for no view (a typo, another session's) is refused by name, not silently left unused.
+fn check_corrections(folder: &Path, manifest: &SessionManifest) -> Result<()> {
+    let entries = std::fs::read_dir(folder).map_err(|e| rmvp_dataset::Error::io(folder, e))?;
+    for entry in entries {
+        let path = entry.map_err(|e| rmvp_dataset::Error::io(folder, e))?.path();
+        if !rmvp_dataset::io::picture::is_picture(&path) {
+            continue;
+        }
+        let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+        if !manifest.views.iter().any(|v| v.name == stem) {
+            return Err(Error::MaskInput(format!(
+                "{}: a correction for no view of the session (its views are {} to {})",
+                path.display(),
+                manifest.views.first().map_or("", |v| v.name.as_str()),
+                manifest.views.last().map_or("", |v| v.name.as_str())
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Make the masks of the session in `dir` and keep them in `dir/masks` (and in `output` when
 /// another folder), with the report and the contact sheet.
 pub fn make_masks(dir: &Path, options: &MaskOptions, output: &Path) -> Result<MaskReport> {
     let manifest = SessionManifest::read(dir)?;
     manifest.require_views(dir)?;
+    if let Some(corrections) = &options.corrections {
+        check_corrections(corrections, &manifest)?;
+    }
     let need = |what: &Option<PathBuf>, name: &str| -> Result<PathBuf> {
         what.clone().ok_or_else(|| Error::MaskInput(format!("the {name} mask method needs its input")))
     };
@@ -415,16 +440,21 @@ pub fn make_masks(dir: &Path, options: &MaskOptions, output: &Path) -> Result<Ma
                 }
             };
             let correction = options.corrections.as_ref().and_then(|c| find_picture(c, &view.name));
-            let (mask, corrected) = match correction {
-                Some(path) => (read_picture(&path)?.pixels.to_mask(), true),
+            let (mask, corrected) = match &correction {
+                Some(path) => (read_picture(path)?.pixels.to_mask(), true),
                 None => (mask, false),
             };
             if mask.size() != stokes.s0.size() {
+                let whose = match &correction {
+                    Some(path) => format!("{}: the correction", path.display()),
+                    None => "the mask".to_string(),
+                };
                 return Err(Error::MaskInput(format!(
-                    "the mask of view {} is {}x{}, the view {}x{}",
+                    "{whose} of view {} is {}x{}, the view's {} {}x{}",
                     view.name,
                     mask.width(),
                     mask.height(),
+                    view.folder(dir).join(rmvp_dataset::session::VIEW_STOKES).display(),
                     stokes.s0.width(),
                     stokes.s0.height()
                 )));

@@ -286,6 +286,44 @@ impl Camera {
         if self.width == 0 || self.height == 0 {
             return Err(Error::invalid("camera image size is zero"));
         }
+        if let Some(d) = &self.distortion {
+            self.check_distortion(d)?;
+        }
+        Ok(())
+    }
+
+    /// A lens distortion must be finite and invertible over the image: every pixel of the
+    /// border (the farthest from the centre) comes back from undistorting to within 1e-3 of a
+    /// pixel (OpenCV's iteration, as the rest of rmvp undoes it), and the radial factor stays
+    /// positive out to it.
+    fn check_distortion(&self, d: &Distortion) -> Result<()> {
+        let coefficients = [d.k1, d.k2, d.p1, d.p2, d.k3];
+        if coefficients.iter().any(|c| !c.is_finite()) {
+            return Err(Error::invalid(format!("camera distortion has non-finite coefficients {coefficients:?}")));
+        }
+        let (w, h) = (f64::from(self.width), f64::from(self.height));
+        let (fx, fy, cx, cy) = (self.k[(0, 0)], self.k[(1, 1)], self.k[(0, 2)], self.k[(1, 2)]);
+        let border = (0..=16).flat_map(|i| {
+            let s = f64::from(i) / 16.0;
+            [(s * w, 0.0), (s * w, h), (0.0, s * h), (w, s * h)]
+        });
+        for (u, v) in border {
+            let (xd, yd) = ((u - cx) / fx, (v - cy) / fy);
+            let (x, y) = d.undistort(xd, yd);
+            let r2 = x * x + y * y;
+            let radial = 1.0 + r2 * (d.k1 + r2 * (d.k2 + r2 * d.k3));
+            let (rx, ry) = d.distort(x, y);
+            let off = ((rx - xd) * fx).hypot((ry - yd) * fy);
+            // NaN (an iteration that diverged) fails both tests.
+            let undone = radial > 0.0 && off < 1e-3;
+            if !undone {
+                return Err(Error::invalid(format!(
+                    "camera distortion {coefficients:?} cannot be undone at pixel ({u:.0}, {v:.0}) of its \
+                     {}x{} image",
+                    self.width, self.height
+                )));
+            }
+        }
         Ok(())
     }
 }
@@ -294,6 +332,18 @@ impl Camera {
 mod tests {
     use super::*;
     use nalgebra::Rotation3;
+
+    #[test]
+    fn distortions_that_cannot_be_undone_are_refused() {
+        let mut c = camera();
+        c.distortion = Some(Distortion { k1: -0.28, k2: 0.07, p1: 0.001, p2: -0.0005, k3: 0.0 });
+        c.validate().unwrap();
+        for bad in [f64::NAN, -1e6, 1e6] {
+            c.distortion = Some(Distortion { k1: bad, k2: 0.0, p1: 0.0, p2: 0.0, k3: 0.0 });
+            let err = c.validate().unwrap_err().to_string();
+            assert!(err.contains("distortion"), "{bad}: {err}");
+        }
+    }
 
     fn camera() -> Camera {
         let r = *Rotation3::from_euler_angles(0.3, -0.5, 0.2).matrix();

@@ -33,21 +33,39 @@ pub fn import_poses(dir: &Path, source: &Path, min_views: usize) -> Result<PoseS
         let first = manifest.views.first().ok_or_else(|| DataError::format(dir, "the session has no views"))?;
         Ok(read_view_stokes(dir, first)?.s0.size())
     };
-    let (cameras, residuals, world): Imported = if source.is_dir() {
-        let model = ColmapModel::read(source)?;
-        let cameras: Vec<(String, Camera)> = model.cameras(source)?.into_iter().map(|(n, c)| (stem(&n), c)).collect();
+    // Cameras named by file: their sizes must be the views', and no two may match one view.
+    let check = |named: &[(String, Camera)], what: &str| -> Result<Vec<(String, Camera)>> {
         let size = view_size()?;
-        if let Some((name, c)) = cameras.iter().find(|(_, c)| (c.width as usize, c.height as usize) != size) {
+        if let Some((name, c)) = named.iter().find(|(_, c)| (c.width as usize, c.height as usize) != size) {
             return Err(DataError::format(
                 source,
                 format!(
-                    "image {name} was {}x{} pixels in COLMAP, the session's views are {}x{}: run COLMAP on the views at \
+                    "image {name} was {}x{} pixels in {what}, the session's views are {}x{}: pose the views at \
                      their size",
                     c.width, c.height, size.0, size.1
                 ),
             )
             .into());
         }
+        for (i, (name, _)) in named.iter().enumerate() {
+            if let Some((other, _)) = named[..i].iter().find(|(n, _)| stem(n) == stem(name)) {
+                let which = if other == name {
+                    format!("two of its cameras are {name}")
+                } else {
+                    format!("{other} and {name}")
+                };
+                return Err(DataError::format(
+                    source,
+                    format!("{which}: both would pose view {}; keep one", stem(name)),
+                )
+                .into());
+            }
+        }
+        Ok(named.iter().map(|(n, c)| (stem(n), c.clone())).collect())
+    };
+    let (cameras, residuals, world): Imported = if source.is_dir() {
+        let model = ColmapModel::read(source)?;
+        let cameras = check(&model.cameras(source)?, "COLMAP")?;
         let residuals = cameras.iter().enumerate().map(|(i, (_, c))| model.residual(i, c)).collect();
         (cameras, residuals, format!("the COLMAP model's ({})", source.display()))
     } else if extension == "npz" {
@@ -66,7 +84,7 @@ pub fn import_poses(dir: &Path, source: &Path, min_views: usize) -> Result<PoseS
         let n = cameras.len();
         (cameras, vec![(f64::NAN, 0); n], format!("the world_mat frame of {}", source.display()))
     } else {
-        let cameras = Transforms::read(source)?.cameras(source)?;
+        let cameras = check(&Transforms::read(source)?.cameras(source)?, "transforms.json")?;
         let n = cameras.len();
         (cameras, vec![(f64::NAN, 0); n], format!("the transforms' world ({})", source.display()))
     };

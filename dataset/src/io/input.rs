@@ -115,7 +115,12 @@ pub fn read_bytes_limited(path: &Path, limit: u64) -> Result<Vec<u8>> {
     if size > limit {
         return Err(Error::format(path, format!("is {size} bytes, more than the {limit} this file may have")));
     }
-    let mut bytes = Vec::with_capacity(size as usize);
+    // Fallibly: a file too large for this process's memory (a sparse file, a tight address
+    // space limit) is refused by name instead of aborting the process.
+    let mut bytes = Vec::new();
+    bytes
+        .try_reserve_exact(size as usize)
+        .map_err(|_| Error::format(path, format!("is {size} bytes, more than this process can hold in memory")))?;
     file.take(limit.saturating_add(1)).read_to_end(&mut bytes).map_err(|e| Error::io(path, e))?;
     if bytes.len() as u64 > limit {
         return Err(Error::format(path, format!("grew past the {limit} bytes this file may have while read")));

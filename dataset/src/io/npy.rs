@@ -107,6 +107,11 @@ pub fn write_npy<T: Element>(path: &Path, array: &Array<T>) -> Result<()> {
     write_atomically(path, |out| write_array(out, array))
 }
 
+/// The most an `.npz` entry may inflate, uncompressed bytes per compressed byte (beyond its
+/// first MiB). Float images of mostly masked-out pixels compress tens of times; deflate can
+/// reach 1032 on zeros, which only a forged file needs.
+const MAX_INFLATION: u64 = 256;
+
 /// Read every array of an `.npz` archive, in archive order, as `(name, array)`; each array
 /// holds at most four samples per pixel of the largest image ([`input::max_pixels`]).
 pub fn read_npz<T: Element>(path: &Path) -> Result<Vec<(String, Array<T>)>> {
@@ -121,12 +126,26 @@ pub fn read_npz_limited<T: Element>(path: &Path, max_elements: u64) -> Result<Ve
 }
 
 fn read_npz_from<T: Element, R: Read + Seek>(
-    reader: R,
+    mut reader: R,
     path: &Path,
     max_elements: u64,
 ) -> Result<Vec<(String, Array<T>)>> {
+    let listed = central_directory_entries(&mut reader).map_err(|e| Error::io(path, e))?;
     let mut zip =
         zip::ZipArchive::new(reader).map_err(|e| Error::format(path, format!("not a readable NPZ archive: {e}")))?;
+    // The zip reader keeps one entry per name: more entries listed than names read means two
+    // share a name, of which numpy reads the last and other readers the first.
+    if listed.is_some_and(|n| n > zip.len()) {
+        return Err(Error::format(
+            path,
+            format!(
+                "lists {} entries under {} names: two entries of one array (numpy reads the last, other \
+                 readers the first)",
+                listed.unwrap_or_default(),
+                zip.len()
+            ),
+        ));
+    }
     let mut arrays = Vec::new();
     for i in 0..zip.len() {
         let entry = zip.by_index(i).map_err(|e| Error::format(path, format!("entry {i}: {e}")))?;
@@ -134,8 +153,19 @@ fn read_npz_from<T: Element, R: Read + Seek>(
         let Some(name) = npyz::npz::array_name_from_file_name(&entry_name).map(str::to_owned) else {
             continue;
         };
-        // The entry's declared size bounds what is inflated; the array must fit in it.
+        // The entry's declared size bounds what is inflated; the array must fit in it, and
+        // inflate from at most [`MAX_INFLATION`] times its compressed bytes.
         let available = entry.size();
+        let compressed = entry.compressed_size();
+        if available > compressed.saturating_mul(MAX_INFLATION).saturating_add(1 << 20) {
+            return Err(Error::format(
+                path,
+                format!(
+                    "array {name} inflates to {available} bytes from {compressed}, more than {MAX_INFLATION} \
+                     times: a decompression bomb, not an image"
+                ),
+            ));
+        }
         let array = read_array(entry, path, available, max_elements).map_err(|e| match e {
             Error::Format { message, .. } => Error::format(path, format!("array {name}: {message}")),
             other => other,
@@ -143,6 +173,20 @@ fn read_npz_from<T: Element, R: Read + Seek>(
         arrays.push((name, array));
     }
     Ok(arrays)
+}
+
+/// The number of entries a zip archive's end-of-central-directory record lists (`None` when it
+/// has none in its last 64 KiB, or is Zip64: the zip reader then decides).
+fn central_directory_entries<R: Read + Seek>(reader: &mut R) -> std::io::Result<Option<usize>> {
+    let size = reader.seek(std::io::SeekFrom::End(0))?;
+    let tail_len = size.min(22 + 0xFFFF);
+    reader.seek(std::io::SeekFrom::Start(size - tail_len))?;
+    let mut tail = vec![0u8; tail_len as usize];
+    reader.read_exact(&mut tail)?;
+    reader.seek(std::io::SeekFrom::Start(0))?;
+    let Some(at) = tail.windows(4).rposition(|w| w == b"PK\x05\x06") else { return Ok(None) };
+    let entries = tail.get(at + 10..at + 12).map(|b| u16::from_le_bytes([b[0], b[1]]));
+    Ok(entries.filter(|&n| n != 0xFFFF).map(usize::from))
 }
 
 /// Write an `.npz` archive (deflate-compressed, as `numpy.savez_compressed`).
@@ -160,4 +204,42 @@ pub fn write_npz<T: Element>(path: &Path, arrays: &[(String, Array<T>)]) -> Resu
         zip.finish()?;
         Ok(())
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn two_entries_of_one_array_and_a_decompression_bomb_are_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let path = tmp.path().join("cameras.npz");
+        let small = |v: f64| Array { shape: vec![2], data: vec![v, v] };
+        write_npz(&path, &[("a".into(), small(1.0)), ("b".into(), small(2.0))]).unwrap();
+        assert_eq!(read_npz::<f64>(&path).unwrap().len(), 2);
+        // The second entry renamed to the first's name, in its local header and the directory.
+        let bytes = std::fs::read(&path).unwrap();
+        let renamed: Vec<u8> = bytes.windows(5).map(|w| w == b"b.npy").collect::<Vec<_>>().iter().enumerate().fold(
+            bytes.clone(),
+            |mut out, (i, &hit)| {
+                if hit {
+                    out[i] = b'a';
+                }
+                out
+            },
+        );
+        std::fs::write(&path, renamed).unwrap();
+        let err = read_npz::<f64>(&path).unwrap_err().to_string();
+        assert!(err.contains("cameras.npz") && err.contains("two entries of one array"), "{err}");
+
+        // 32 MB of zeros deflate to about 32 kB.
+        let zeros = Array { shape: vec![8 << 20], data: vec![0f32; 8 << 20] };
+        write_npz(&path, &[("S0".into(), zeros)]).unwrap();
+        let err = read_npz::<f32>(&path).unwrap_err().to_string();
+        assert!(err.contains("cameras.npz") && err.contains("decompression bomb"), "{err}");
+        // An image of mostly masked-out pixels still reads.
+        let masked: Vec<f32> = (0..1 << 20).map(|i| if i % 16 == 0 { (i as f32).sin() } else { 0.0 }).collect();
+        write_npz(&path, &[("S0".into(), Array { shape: vec![1 << 20], data: masked })]).unwrap();
+        assert!(read_npz::<f32>(&path).is_ok());
+    }
 }

@@ -101,6 +101,7 @@ pub fn read_picture(path: &Path) -> Result<Picture> {
     if reader.format().is_none() {
         return Err(Error::format(path, "not a picture rmvp reads (PNG, JPEG, TIFF, EXR or HDR)"));
     }
+    let reader_format = reader.format();
     let mut limits = Limits::default();
     limits.max_alloc = Some(input::max_pixels().saturating_mul(16));
     reader.limits(limits);
@@ -114,9 +115,24 @@ pub fn read_picture(path: &Path) -> Result<Picture> {
             format!("declares a {width}x{height} image that its {} bytes cannot hold", bytes.len()),
         ));
     }
+    if reader_format == Some(image::ImageFormat::Jpeg) && !jpeg_ends(&bytes) {
+        return Err(Error::format(
+            path,
+            "a JPEG without its end (truncated): no end-of-image marker after its last scan",
+        ));
+    }
     let camera = decoder.exif_metadata().ok().flatten().and_then(|exif| camera_from_exif(&exif));
     let image = DynamicImage::from_decoder(decoder).map_err(unreadable)?;
     Ok(Picture { pixels: samples(path, image)?, camera })
+}
+
+/// Whether a JPEG's last scan (`FF DA`) is followed by its end-of-image marker (`FF D9`): the
+/// decoder fills a truncated file's missing blocks with grey without a word. Entropy-coded data
+/// stuffs every `FF` byte, so neither marker appears inside a scan; an EXIF thumbnail's own
+/// markers come before the image's scans.
+fn jpeg_ends(bytes: &[u8]) -> bool {
+    let last_scan = bytes.windows(2).rposition(|w| w == [0xFF, 0xDA]);
+    last_scan.is_some_and(|at| bytes[at..].windows(2).any(|w| w == [0xFF, 0xD9]))
 }
 
 /// The colour channels of a decoded image (alpha dropped), by the module's rule.
@@ -176,6 +192,23 @@ mod tests {
 
     fn write(path: &Path, image: &DynamicImage) {
         image.save(path).unwrap();
+    }
+
+    #[test]
+    fn a_truncated_jpeg_is_refused() {
+        let tmp = tempfile::tempdir().unwrap();
+        let texture = |x: u32, y: u32| ((x * 7919 + y * 104_729) % 251) as u8;
+        let image = DynamicImage::ImageRgb8(image::ImageBuffer::from_fn(256, 192, |x, y| Rgb([texture(x, y), 90, 30])));
+        let path = tmp.path().join("mask.jpg");
+        write(&path, &image);
+        assert!(read_picture(&path).is_ok());
+        let bytes = std::fs::read(&path).unwrap();
+        // Cut inside the scan (the decoder would fill the rest with grey), or only its end marker.
+        for keep in [bytes.len() * 3 / 4, bytes.len() - 2] {
+            std::fs::write(&path, &bytes[..keep]).unwrap();
+            let err = read_picture(&path).map(drop).unwrap_err().to_string();
+            assert!(err.contains("mask.jpg") && err.contains("truncated"), "{keep}: {err}");
+        }
     }
 
     #[test]

@@ -76,7 +76,20 @@ pub fn read(dir: &Path) -> Result<Scene> {
     let arrays = read_camera_arrays(&cameras_path)?;
     let has = |name: &str| arrays.iter().any(|(n, _)| n == name);
     let (world_mats, normalization) = if has("world_mat_0") {
-        cameras_by_keys(&cameras_path, &arrays, (0..).map(|k: usize| k.to_string()))?
+        let zero_based = cameras_by_keys(&cameras_path, &arrays, (0..).map(|k: usize| k.to_string()))?;
+        // Both numberings in one file: they must be the same cameras, or which one a reader
+        // takes decides the scene (PolGS reads the 1-based keys).
+        if has("world_mat_01") {
+            let one_based = cameras_by_keys(&cameras_path, &arrays, (1..).map(|k: usize| format!("{k:02}")))?;
+            if one_based != zero_based {
+                return Err(Error::format(
+                    &cameras_path,
+                    "holds 0-based (world_mat_0, ...) and 1-based (world_mat_01, ...) cameras that disagree: \
+                     readers differ in which they take",
+                ));
+            }
+        }
+        zero_based
     } else if has("world_mat_01") {
         cameras_by_keys(&cameras_path, &arrays, (1..).map(|k: usize| format!("{k:02}")))?
     } else {
@@ -175,6 +188,28 @@ mod tests {
         std::fs::write(dir.path().join("images_stokes/0001.npz"), b"not a zip").unwrap();
         let err = read(dir.path()).unwrap_err().to_string();
         assert!(err.contains("0001.npz"), "{err}");
+    }
+
+    #[test]
+    fn both_numberings_are_read_when_they_agree_and_refused_when_not() {
+        let scene = scene();
+        let dir = tempfile::tempdir().unwrap();
+        write(&scene, dir.path()).unwrap();
+        let cameras = dir.path().join(CAMERAS);
+        let zero_based = npy::read_npz::<f64>(&cameras).unwrap();
+        let one_based = |shift: f64| {
+            zero_based.iter().map(move |(name, a)| {
+                let (stem, k) = name.rsplit_once('_').unwrap();
+                let mut a = a.clone();
+                a.data[3] += shift;
+                (format!("{stem}_{:02}", k.parse::<usize>().unwrap() + 1), a)
+            })
+        };
+        npy::write_npz(&cameras, &zero_based.iter().cloned().chain(one_based(0.0)).collect::<Vec<_>>()).unwrap();
+        assert_same(&read(dir.path()).unwrap(), &scene);
+        npy::write_npz(&cameras, &zero_based.iter().cloned().chain(one_based(0.5)).collect::<Vec<_>>()).unwrap();
+        let err = read(dir.path()).unwrap_err().to_string();
+        assert!(err.contains("cameras.npz") && err.contains("disagree"), "{err}");
     }
 
     #[test]
