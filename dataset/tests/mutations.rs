@@ -4,7 +4,7 @@
 //! a hang or a panic fails the test and names the mutation. A mutated file must be refused with
 //! an error that names it, or read: never a panic, never more memory, never a hang.
 
-use rmvp_dataset::io::{exr, npy, picture, png};
+use rmvp_dataset::io::{exr, hdr, npy, picture, png};
 use rmvp_dataset::layout::nersp;
 use rmvp_dataset::rng::Rng;
 use rmvp_dataset::session::SessionManifest;
@@ -91,6 +91,26 @@ fn picture_seed(format: image::ImageFormat) -> Vec<u8> {
     bytes
 }
 
+/// The spot's S0 as a Radiance HDR file (run-length scanlines, as our writer stores them).
+fn hdr_seed(dir: &Path) -> Vec<u8> {
+    let s0 = npy::read_npy::<f32>(&rmvp_testkit::fixture("spot_nersp").join("s0/0000.npy")).unwrap();
+    let (h, w) = (s0.shape[0], s0.shape[1]);
+    let grey: Vec<f32> = s0.data.chunks(s0.data.len() / (w * h)).map(|p| p[0]).collect();
+    let rgb: Vec<f32> = grey.iter().flat_map(|&v| [v, 0.5 * v, 0.25 * v]).collect();
+    let path = dir.join("seed.hdr");
+    hdr::write_hdr(&path, &rmvp_dataset::Image::from_vec(w, h, 3, rgb).unwrap()).unwrap();
+    std::fs::read(&path).unwrap()
+}
+
+/// A 6x40 Radiance HDR file with flat scanlines (widths under 8 must be), one old-style run.
+fn flat_hdr_seed() -> Vec<u8> {
+    let mut bytes = b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 40 +X 6\n".to_vec();
+    for y in 0..40u8 {
+        bytes.extend([y, 2 * y, 100, 130, 1, 1, 1, 2, 7, 8, 9, 128, 200, 3, y, 140, 5, 5, 5, 120]);
+    }
+    bytes
+}
+
 fn families() -> Vec<Family> {
     vec![
         Family {
@@ -157,6 +177,20 @@ fn families() -> Vec<Family> {
             fixup: no_fixup,
         },
         Family { name: "stl", file_name: "m.stl", seed: stl_seed, read: |p| Mesh::read(p).map(drop), fixup: no_fixup },
+        Family {
+            name: "hdr",
+            file_name: "m.hdr",
+            seed: hdr_seed,
+            read: |p| hdr::read_hdr(p).map(drop),
+            fixup: no_fixup,
+        },
+        Family {
+            name: "hdr-flat",
+            file_name: "m.hdr",
+            seed: |_| flat_hdr_seed(),
+            read: |p| hdr::read_hdr(p).map(drop),
+            fixup: no_fixup,
+        },
         Family {
             name: "session",
             file_name: "session.json",
@@ -336,6 +370,16 @@ fn png_family() {
 #[test]
 fn jpeg_family() {
     run_family("jpeg");
+}
+
+#[test]
+fn hdr_family() {
+    run_family("hdr");
+}
+
+#[test]
+fn hdr_flat_family() {
+    run_family("hdr-flat");
 }
 
 #[test]

@@ -55,16 +55,7 @@ pub fn reconstruct(
     let checkpoint = out.join(CHECKPOINT);
     let log_path = out.join(LOG);
     let mut trainer = if control.resume && checkpoint.exists() {
-        let t = Trainer::load_checkpoint(&checkpoint, set)?;
-        let changed = match &t.options {
-            Some(recorded) => recorded.training_differences(options),
-            None => Vec::new(),
-        };
-        if !changed.is_empty() || t.config != config {
-            let changed = if changed.is_empty() { "the training configuration".into() } else { changed.join(", ") };
-            return Err(Error::CheckpointSettings { path: checkpoint, changed });
-        }
-        t
+        Trainer::load_checkpoint(&checkpoint, set, &config, Some(options))?
     } else {
         let trainer = Trainer::new(config, set);
         if let Some(least) = trainer.model.start_without_surface(&trainer.params) {

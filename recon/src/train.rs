@@ -392,24 +392,39 @@ impl Trainer {
     }
 
     /// Restore a run from a checkpoint written by [`Trainer::save_checkpoint`]; the training
-    /// set must be the one it was trained on.
-    pub fn load_checkpoint(path: &Path, set: TrainingSet) -> Result<Self> {
+    /// set must be the one it was trained on. The checkpoint's header is compared with the run's
+    /// `config` (and with `options`, where both have them) before anything is built from it: a
+    /// header may declare any model, and only the run's is built.
+    pub fn load_checkpoint(
+        path: &Path,
+        set: TrainingSet,
+        config: &TrainConfig,
+        options: Option<&ReconOptions>,
+    ) -> Result<Self> {
         let bytes = rmvp_dataset::io::input::read_bytes(path)?;
         let bad = |m: &str| Error::BadCheckpoint { path: path.to_path_buf(), problem: m.to_string() };
         let (header, len) = checkpoint_header(path, &bytes)?;
-        let mut trainer = Self::new(header.config, set);
+        let changed = match (&header.options, options) {
+            (Some(recorded), Some(now)) => recorded.training_differences(now),
+            _ => Vec::new(),
+        };
+        if !changed.is_empty() || header.config != *config {
+            let changed = if changed.is_empty() { "the training configuration".into() } else { changed.join(", ") };
+            return Err(Error::CheckpointSettings { path: path.to_path_buf(), changed });
+        }
+        let body = &bytes[16 + len..];
+        if body.len() as u64 != 12 * header.parameters as u64 {
+            return Err(bad(&format!(
+                "truncated: {} bytes of parameters and optimiser state, expected {}",
+                body.len(),
+                12 * header.parameters as u64
+            )));
+        }
+        let mut trainer = Self::new(config.clone(), set);
         trainer.options = header.options;
         let n = trainer.params.len();
         if header.parameters != n {
             return Err(bad(&format!("{} parameters, the model has {n}", header.parameters)));
-        }
-        let body = &bytes[16 + len..];
-        if body.len() != 12 * n {
-            return Err(bad(&format!(
-                "truncated: {} bytes of parameters and optimiser state, expected {}",
-                body.len(),
-                12 * n
-            )));
         }
         let floats: Vec<f32> =
             body.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))).collect();

@@ -143,7 +143,7 @@ fn resume_continues_bit_for_bit() {
         }
     });
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
-    let mut first = Trainer::new(config, set.clone());
+    let mut first = Trainer::new(config.clone(), set.clone());
     pool.install(|| {
         for _ in 0..2 {
             first.step();
@@ -153,7 +153,7 @@ fn resume_continues_bit_for_bit() {
     let path = dir.path().join("checkpoint.bin");
     first.save_checkpoint(&path).unwrap();
     drop(first);
-    let mut resumed = Trainer::load_checkpoint(&path, set.clone()).unwrap();
+    let mut resumed = Trainer::load_checkpoint(&path, set.clone(), &config, None).unwrap();
     assert_eq!(resumed.iteration, 2);
     pool.install(|| {
         for _ in 0..4 {
@@ -164,6 +164,12 @@ fn resume_continues_bit_for_bit() {
     assert!(resumed.params == straight.params, "parameters differ after resume");
     assert!(resumed.adam == straight.adam, "optimiser state differs after resume");
 
+    // A run of another configuration is refused before a model is built from the header.
+    let mut other = config.clone();
+    other.batch_rays += 1;
+    let err = Trainer::load_checkpoint(&path, set.clone(), &other, None).err().expect("another configuration");
+    assert!(matches!(err, Error::CheckpointSettings { .. }), "{err}");
+
     // One of another format (an older layout of the parameters) is refused, saying so.
     let bytes = std::fs::read(&path).unwrap();
     let name = b"rmvp-recon-checkpoint-";
@@ -171,12 +177,12 @@ fn resume_continues_bit_for_bit() {
     let mut older = bytes.clone();
     older[at] = b'1';
     std::fs::write(&path, &older).unwrap();
-    let err = Trainer::load_checkpoint(&path, set.clone()).err().expect("older format refused");
+    let err = Trainer::load_checkpoint(&path, set.clone(), &config, None).err().expect("older format refused");
     assert!(err.to_string().contains("format rmvp-recon-checkpoint-1"), "{err}");
 
     // A truncated checkpoint is refused with the file's name.
     std::fs::write(&path, &bytes[..bytes.len() - 10]).unwrap();
-    let err = Trainer::load_checkpoint(&path, set).err().expect("truncated checkpoint refused");
+    let err = Trainer::load_checkpoint(&path, set, &config, None).err().expect("truncated checkpoint refused");
     assert!(matches!(&err, Error::BadCheckpoint { path: p, problem } if *p == path && problem.contains("truncated")));
     assert!(err.to_string().contains("checkpoint.bin"), "{err}");
 }

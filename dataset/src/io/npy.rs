@@ -36,7 +36,16 @@ impl Element for f64 {
 
 /// Read one array of at most `max_elements` from `reader`, which holds `available` bytes: the
 /// shape its header declares is checked against both before the elements are allocated.
-fn read_array<T: Element, R: Read>(reader: R, path: &Path, available: u64, max_elements: u64) -> Result<Array<T>> {
+/// An array from `reader`, refused from its header when it holds more than `max_elements`,
+/// more than the `available` bytes, or, for an archive entry of `compressed` bytes, more than
+/// [`MAX_INFLATION`] times them.
+fn read_array<T: Element, R: Read>(
+    reader: R,
+    path: &Path,
+    available: u64,
+    max_elements: u64,
+    compressed: Option<u64>,
+) -> Result<Array<T>> {
     let npy = NpyFile::new(reader).map_err(|e| Error::format(path, format!("bad NPY header: {e}")))?;
     if npy.order() != npyz::Order::C {
         return Err(Error::format(path, "Fortran-ordered arrays are not supported"));
@@ -64,6 +73,16 @@ fn read_array<T: Element, R: Read>(reader: R, path: &Path, available: u64, max_e
             ),
         ));
     }
+    let bytes = elements.saturating_mul(element_bytes);
+    if let Some(compressed) = compressed.filter(|&c| bytes > c.saturating_mul(MAX_INFLATION).saturating_add(1 << 20)) {
+        return Err(Error::format(
+            path,
+            format!(
+                "shape {shape:?} inflates to {bytes} bytes from {compressed}, more than {MAX_INFLATION} times: a \
+                 decompression bomb, not an image"
+            ),
+        ));
+    }
     let expected = elements as usize;
     let truncated =
         |e: std::io::Error| Error::format(path, format!("cannot read {expected} elements of shape {shape:?}: {e}"));
@@ -83,7 +102,7 @@ fn read_array<T: Element, R: Read>(reader: R, path: &Path, available: u64, max_e
 pub fn read_npy<T: Element>(path: &Path) -> Result<Array<T>> {
     let file = input::open_regular(path)?;
     let bytes = file.metadata().map_err(|e| Error::io(path, e))?.len();
-    read_array(BufReader::new(file), path, bytes, u64::MAX)
+    read_array(BufReader::new(file), path, bytes, u64::MAX, None)
 }
 
 fn write_array<T: Element, W: Write>(out: W, array: &Array<T>) -> std::io::Result<()> {
@@ -156,17 +175,8 @@ fn read_npz_from<T: Element, R: Read + Seek>(
         // The entry's declared size bounds what is inflated; the array must fit in it, and
         // inflate from at most [`MAX_INFLATION`] times its compressed bytes.
         let available = entry.size();
-        let compressed = entry.compressed_size();
-        if available > compressed.saturating_mul(MAX_INFLATION).saturating_add(1 << 20) {
-            return Err(Error::format(
-                path,
-                format!(
-                    "array {name} inflates to {available} bytes from {compressed}, more than {MAX_INFLATION} \
-                     times: a decompression bomb, not an image"
-                ),
-            ));
-        }
-        let array = read_array(entry, path, available, max_elements).map_err(|e| match e {
+        let compressed = Some(entry.compressed_size());
+        let array = read_array(entry, path, available, max_elements, compressed).map_err(|e| match e {
             Error::Format { message, .. } => Error::format(path, format!("array {name}: {message}")),
             other => other,
         })?;
