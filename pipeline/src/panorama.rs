@@ -32,6 +32,17 @@ pub fn read_panorama(path: &Path) -> Result<Image<f32>> {
     if w.abs_diff(2 * h) > 1 {
         return Err(bad(format!("{w}x{h} is not equirectangular (the width must be twice the height)")));
     }
+    // Light is finite and not negative: said here, by name, not later by the build.
+    if let Some(i) = image.data().iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
+        let (c, pixel) = (image.channels(), i / image.channels());
+        return Err(bad(format!(
+            "pixel ({}, {}) holds {} in channel {}: light must be finite and not negative",
+            pixel % w,
+            pixel / w,
+            image.data()[i],
+            i % c
+        )));
+    }
     Ok(image)
 }
 
@@ -77,6 +88,19 @@ mod tests {
         // The world's up (board +z) is the panorama's up.
         let up = rotation * Vector3::z();
         assert!((up - Vector3::y()).norm() < 1e-12, "{up}");
+    }
+
+    #[test]
+    fn a_panorama_with_nan_or_negative_light_is_refused_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        for (value, said) in [(f32::NAN, "NaN"), (-1.0, "-1")] {
+            let path = dir.path().join("sky.exr");
+            let mut image = Image::new(64, 32, 3);
+            image.pixel_mut(5, 7)[1] = value;
+            rmvp_dataset::io::exr::write_exr(&path, &image, &["R", "G", "B"]).unwrap();
+            let err = read_panorama(&path).unwrap_err().to_string();
+            assert!(err.contains("sky.exr") && err.contains("pixel (5, 7)") && err.contains(said), "{err}");
+        }
     }
 
     #[test]
