@@ -542,7 +542,7 @@ impl Description {
             })
             .collect();
         let xml = XML_TEMPLATE.replace("{PIXEL_FORMATS}", &entries).replace("{RIG}", RIG_XML);
-        let black = SimulatedScene::sensor(REFERENCE_EXPOSURE_US, 0.0, 12).dark_offset / 4095.0;
+        let black = black_level_fraction() as f32;
         let left = &config.left;
         let mut registers: Vec<(u32, Vec<u8>)> = [
             (register::EXPOSURE_AUTO, 2),
@@ -572,6 +572,11 @@ impl Description {
         let registers = firmware::flir_defaults(&served, served.pixel_formats[0].1, &config.serial, &config.left);
         Ok(Self { xml: served.xml.clone(), formats: served.pixel_formats.clone(), registers, firmware })
     }
+}
+
+/// The sensor model's black level as a fraction of full scale (what `BlackLevel` reports).
+fn black_level_fraction() -> f64 {
+    f64::from(SimulatedScene::sensor(REFERENCE_EXPOSURE_US, 0.0, 12).dark_offset) / 4095.0
 }
 
 /// A running simulated camera; it stops when dropped.

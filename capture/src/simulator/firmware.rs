@@ -236,7 +236,7 @@ pub(super) fn flir_defaults(
 ) -> Vec<(u32, Vec<u8>)> {
     let mut writes = served.initial.clone();
     let (w, h) = (super::SENSOR_WIDTH as u64, super::SENSOR_HEIGHT as u64);
-    let black_level = super::SimulatedScene::sensor(super::REFERENCE_EXPOSURE_US, 0.0, 12).dark_offset as f64 / 4095.0;
+    let black_level = super::black_level_fraction();
     let values: [(&str, u64); 32] = [
         ("Width_Val", w),
         ("Width_Min", 16),

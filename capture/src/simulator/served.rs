@@ -63,16 +63,6 @@ impl Register {
         }
         out
     }
-
-    /// The integer of `bytes` read in this register's order.
-    pub fn value(&self, bytes: &[u8]) -> u64 {
-        let mut le = bytes.to_vec();
-        if !self.little_endian {
-            le.reverse();
-        }
-        le.resize(8, 0);
-        u64::from_le_bytes(le.try_into().expect("eight bytes"))
-    }
 }
 
 /// A description ready to serve.
