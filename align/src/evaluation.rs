@@ -19,6 +19,7 @@ pub const ERROR_MAP_MAX_DEG: f32 = 30.0;
 
 /// The figures of one evaluation.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(from = "EvaluationRecord")]
 pub struct Evaluation {
     /// Accuracy, completeness, Chamfer, F-score.
     #[serde(flatten)]
@@ -33,6 +34,38 @@ pub struct Evaluation {
     /// a scene was given.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub breakdown: Option<ErrorBreakdown>,
+}
+
+/// [`Evaluation`] as written, the surface metrics' fields at the top level: read field by
+/// field (a flattened field would keep every unknown field of the file as a tree).
+#[derive(Deserialize)]
+struct EvaluationRecord {
+    accuracy: f64,
+    completeness: f64,
+    chamfer: f64,
+    precision: f64,
+    recall: f64,
+    fscore: f64,
+    threshold: f64,
+    samples: [usize; 2],
+    #[serde(default)]
+    normal_mae_deg: Option<f64>,
+    #[serde(default)]
+    normal_views: Vec<ViewNormalError>,
+    #[serde(default)]
+    breakdown: Option<ErrorBreakdown>,
+}
+
+impl From<EvaluationRecord> for Evaluation {
+    fn from(r: EvaluationRecord) -> Self {
+        let EvaluationRecord { accuracy, completeness, chamfer, precision, recall, fscore, threshold, samples, .. } = r;
+        Evaluation {
+            surface: SurfaceMetrics { accuracy, completeness, chamfer, precision, recall, fscore, threshold, samples },
+            normal_mae_deg: r.normal_mae_deg,
+            normal_views: r.normal_views,
+            breakdown: r.breakdown,
+        }
+    }
 }
 
 /// Compare `pred` with `gt` and, when `scene` is given, with its ground-truth normal maps.

@@ -12,7 +12,7 @@
 //! ```
 
 use crate::io::input;
-use crate::io::json::{read_json, write_json};
+use crate::io::json::{free_form, read_json, write_json};
 use crate::polarization::{cell_name, PolarizerCell, SENSOR_POLARIZER_CELL, VENDOR_NAMES_AS_IMAGE_ANGLES};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -200,6 +200,7 @@ pub struct SessionSettings {
     /// How views are positioned and started.
     pub positioning: PositioningMode,
     /// What one unit of the Stokes images is.
+    #[serde(deserialize_with = "free_form")]
     pub stokes_unit: StokesUnit,
 }
 

@@ -40,7 +40,7 @@ use rmvp_calib::poses::charuco::BOARD_WORLD;
 use rmvp_calib::poses::{PoseSet, POSES_FILE};
 use rmvp_calib::scene::posed_scene;
 use rmvp_calib::undistort::undistort_view;
-use rmvp_dataset::io::json::{read_json, write_json};
+use rmvp_dataset::io::json::{free_form, read_json, write_json};
 use rmvp_dataset::layout::{write_scene, Layout};
 use rmvp_dataset::progress::progress_bar;
 use rmvp_dataset::session::SessionManifest;
@@ -172,6 +172,7 @@ pub struct BuildOptions {
     #[serde(skip)]
     pub output: PathBuf,
     /// The training split (NeRSP: 6 sparse views).
+    #[serde(deserialize_with = "free_form")]
     pub train: TrainViews,
     /// The camera calibration the poses used (`camera.json`), for the record.
     pub calibration: Option<PathBuf>,
@@ -215,6 +216,7 @@ impl Default for BuildOptions {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PoseSummary {
     /// Method (`charuco`, `colmap`, ...).
+    #[serde(deserialize_with = "free_form")]
     pub method: serde_json::Value,
     /// The world frame.
     pub world: String,
@@ -306,8 +308,10 @@ pub struct BuildRecord {
     /// The object's name (the session's).
     pub object: String,
     /// The camera (identity, pixel format, size) as the session recorded it.
+    #[serde(deserialize_with = "free_form")]
     pub camera: serde_json::Value,
     /// Acquisition settings as the session recorded them.
+    #[serde(deserialize_with = "free_form")]
     pub settings: serde_json::Value,
     /// Views in the dataset.
     pub views: Vec<String>,

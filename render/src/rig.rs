@@ -128,19 +128,14 @@ impl Rig {
     }
 }
 
-#[derive(Deserialize)]
-#[serde(untagged)]
-enum Pose {
-    Extrinsics { r: [[f64; 3]; 3], t: [f64; 3] },
-    LookAt { eye: [f64; 3], target: [f64; 3] },
-}
-
+/// One entry of a pose list: `r` and `t`, or `eye` and `target`, and optionally `k`.
 #[derive(Deserialize)]
 struct PoseRecord {
-    #[serde(flatten)]
-    pose: Pose,
+    r: Option<[[f64; 3]; 3]>,
+    t: Option<[f64; 3]>,
+    eye: Option<[f64; 3]>,
+    target: Option<[f64; 3]>,
     /// Intrinsics of this camera; default: the rig's.
-    #[serde(default)]
     k: Option<[[f64; 3]; 3]>,
 }
 
@@ -148,7 +143,7 @@ struct PoseRecord {
 /// (world to camera) or `{"eye": [..], "target": [..]}` (+Y up), each optionally with its own
 /// intrinsics `"k": [[..]]` (else `k`).
 pub fn read_poses(path: &Path, k: Matrix3<f64>, width: u32, height: u32) -> Result<Vec<Camera>> {
-    let text = rmvp_dataset::io::input::read_text(path)?;
+    let text = rmvp_dataset::io::json::read_json_text(path)?;
     let poses: Vec<PoseRecord> =
         serde_json::from_str(&text).map_err(|e| rmvp_dataset::Error::format(path, format!("bad pose list: {e}")))?;
     poses
@@ -156,12 +151,16 @@ pub fn read_poses(path: &Path, k: Matrix3<f64>, width: u32, height: u32) -> Resu
         .enumerate()
         .map(|(i, p)| {
             let k = p.k.as_ref().map_or(k, rmvp_dataset::camera::matrix_from_rows);
-            let camera = match p.pose {
-                Pose::Extrinsics { r, t } => {
+            let camera = match (p.r, p.t, p.eye, p.target) {
+                (Some(r), Some(t), None, None) => {
                     Camera::new(k, rmvp_dataset::camera::matrix_from_rows(&r), Vector3::from(t), width, height)
                 }
-                Pose::LookAt { eye, target } => {
+                (None, None, Some(eye), Some(target)) => {
                     look_at(k, Vector3::from(eye), Vector3::from(target), Vector3::y(), width, height)
+                }
+                _ => {
+                    let why = format!("pose {i}: give either \"r\" and \"t\" or \"eye\" and \"target\"");
+                    return Err(rmvp_dataset::Error::format(path, why).into());
                 }
             };
             camera.validate().map_err(|source| Error::BadPose { path: path.to_path_buf(), index: i, source })?;

@@ -4,11 +4,23 @@
 //! conversion is needed.
 
 use crate::camera::{Camera, Distortion};
-use crate::io::write_bytes_atomically;
+use crate::io::{input, write_bytes_atomically};
 use crate::{Error, Result};
 use nalgebra::{Point3, Quaternion, UnitQuaternion, Vector3};
 use std::collections::BTreeMap;
+use std::fs::File;
+use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
+
+/// The most keypoints, over all images, rmvp reads from a model: a model of one object (a few
+/// hundred images of at most 8192 keypoints each, COLMAP's default) holds far fewer.
+pub const MAX_KEYPOINTS: usize = 1 << 23;
+/// The most 3D points rmvp reads from a model.
+pub const MAX_POINTS: usize = 1 << 22;
+/// The longest image name a binary model may hold, in bytes.
+const MAX_NAME_BYTES: usize = 4096;
+/// The most parameters a camera of a model rmvp does not know may have (COLMAP's largest has 12).
+const MAX_CAMERA_PARAMS: usize = 16;
 
 /// One camera (intrinsics) of a model.
 #[derive(Clone, Debug, PartialEq)]
@@ -220,25 +232,41 @@ fn model_by_id(path: &Path, id: i32) -> Result<(&'static str, usize)> {
         .ok_or_else(|| Error::format(path, format!("unknown camera model id {id}")))
 }
 
-/// A little-endian reader over a file's bytes that names the file when it runs out.
+/// A binary model file read in order, every count checked against the bytes left before
+/// anything is allocated for it.
 struct Bytes<'a> {
     path: &'a Path,
-    data: Vec<u8>,
-    at: usize,
+    reader: BufReader<File>,
+    at: u64,
+    len: u64,
 }
 
 impl<'a> Bytes<'a> {
     fn open(path: &'a Path) -> Result<Self> {
-        Ok(Self { path, data: crate::io::input::read_bytes(path)?, at: 0 })
+        let file = input::open_regular(path)?;
+        let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
+        Ok(Self { path, reader: BufReader::new(file), at: 0, len })
+    }
+
+    fn truncated(&self) -> Error {
+        Error::format(self.path, format!("truncated at byte {}", self.at))
     }
 
     fn take<const N: usize>(&mut self) -> Result<[u8; N]> {
-        let bytes = self
-            .data
-            .get(self.at..self.at + N)
-            .ok_or_else(|| Error::format(self.path, format!("truncated at byte {}", self.at)))?;
-        self.at += N;
-        Ok(bytes.try_into().expect("N bytes"))
+        let mut bytes = [0; N];
+        self.reader.read_exact(&mut bytes).map_err(|_| self.truncated())?;
+        self.at += N as u64;
+        Ok(bytes)
+    }
+
+    /// Pass over `n` bytes.
+    fn skip(&mut self, n: u64) -> Result<()> {
+        if n > self.len - self.at.min(self.len) {
+            return Err(self.truncated());
+        }
+        self.reader.seek_relative(n as i64).map_err(|e| Error::io(self.path, e))?;
+        self.at += n;
+        Ok(())
     }
 
     fn u64(&mut self) -> Result<u64> {
@@ -257,24 +285,42 @@ impl<'a> Bytes<'a> {
         Ok(f64::from_le_bytes(self.take()?))
     }
 
+    /// A NUL-terminated image name of at most [`MAX_NAME_BYTES`].
     fn string(&mut self) -> Result<String> {
-        let end = self.data[self.at..]
-            .iter()
-            .position(|&b| b == 0)
-            .ok_or_else(|| Error::format(self.path, "unterminated image name"))?;
-        let s = String::from_utf8_lossy(&self.data[self.at..self.at + end]).into_owned();
-        self.at += end + 1;
-        Ok(s)
+        let mut bytes = Vec::new();
+        let limit = MAX_NAME_BYTES as u64 + 1;
+        (&mut self.reader).take(limit).read_until(0, &mut bytes).map_err(|e| Error::io(self.path, e))?;
+        self.at += bytes.len() as u64;
+        if bytes.last() != Some(&0) {
+            let why = if bytes.len() as u64 == limit {
+                format!("an image name longer than {MAX_NAME_BYTES} bytes")
+            } else {
+                "unterminated image name".to_string()
+            };
+            return Err(Error::format(self.path, why));
+        }
+        bytes.pop();
+        Ok(String::from_utf8_lossy(&bytes).into_owned())
     }
 
     /// A count of items of at least `size` bytes each, checked against what is left.
-    fn count(&mut self, size: usize) -> Result<usize> {
-        let n = self.u64()? as usize;
-        if n.saturating_mul(size) > self.data.len() - self.at {
+    fn count(&mut self, size: u64) -> Result<usize> {
+        let n = self.u64()?;
+        if n.saturating_mul(size) > self.len.saturating_sub(self.at) {
             return Err(Error::format(self.path, format!("claims {n} entries, more than the file holds")));
         }
-        Ok(n)
+        Ok(n as usize)
     }
+}
+
+/// Refuse a model with more than `limit` `what` (keypoints, points), naming its file.
+fn check_total(path: &Path, total: usize, limit: usize, what: &str) -> Result<()> {
+    if total > limit {
+        let why =
+            format!("holds more than the {limit} {what} rmvp reads from a model (a model of one object has far fewer)");
+        return Err(Error::format(path, why));
+    }
+    Ok(())
 }
 
 fn read_cameras_bin(path: &Path) -> Result<BTreeMap<u32, ColmapCamera>> {
@@ -295,6 +341,7 @@ fn read_images_bin(path: &Path) -> Result<Vec<ColmapImage>> {
     let mut b = Bytes::open(path)?;
     let n = b.count(64)?;
     let mut images = Vec::with_capacity(n);
+    let mut keypoints = 0;
     for _ in 0..n {
         let id = b.i32()? as u32;
         let qvec = [b.f64()?, b.f64()?, b.f64()?, b.f64()?];
@@ -302,6 +349,8 @@ fn read_images_bin(path: &Path) -> Result<Vec<ColmapImage>> {
         let camera_id = b.i32()? as u32;
         let name = b.string()?;
         let count = b.count(24)?;
+        keypoints += count;
+        check_total(path, keypoints, MAX_KEYPOINTS, "keypoints")?;
         let points2d = (0..count).map(|_| Ok((b.f64()?, b.f64()?, b.i64()?))).collect::<Result<_>>()?;
         images.push(ColmapImage { id, qvec, tvec, camera_id, name, points2d });
     }
@@ -314,6 +363,7 @@ fn read_points_bin(path: &Path) -> Result<BTreeMap<u64, [f64; 3]>> {
     }
     let mut b = Bytes::open(path)?;
     let n = b.count(43)?;
+    check_total(path, n, MAX_POINTS, "3D points")?;
     let mut points = BTreeMap::new();
     for _ in 0..n {
         let id = b.u64()?;
@@ -321,18 +371,31 @@ fn read_points_bin(path: &Path) -> Result<BTreeMap<u64, [f64; 3]>> {
         let _rgb: [u8; 3] = b.take()?;
         let _error = b.f64()?;
         let track = b.count(8)?;
-        for _ in 0..track {
-            let _: [u8; 8] = b.take()?;
-        }
+        b.skip(track as u64 * 8)?;
         points.insert(id, p);
     }
     Ok(points)
 }
 
 /// The non-comment lines of a text model file, numbered from 1.
-fn lines(path: &Path) -> Result<Vec<(usize, String)>> {
-    let text = crate::io::input::read_text(path)?;
-    Ok(text.lines().enumerate().filter(|(_, l)| !l.starts_with('#')).map(|(i, l)| (i + 1, l.to_string())).collect())
+fn lines(text: &str) -> impl Iterator<Item = (usize, &str)> {
+    text.lines().enumerate().filter(|(_, l)| !l.starts_with('#')).map(|(i, l)| (i + 1, l))
+}
+
+/// The first `n` whitespace-separated fields of `line` and the rest of it, trimmed; `None`
+/// when it has fewer.
+fn fields(line: &str, n: usize) -> Option<(Vec<&str>, &str)> {
+    let mut rest = line.trim_start();
+    let mut out = Vec::with_capacity(n);
+    for _ in 0..n {
+        let end = rest.find(char::is_whitespace).unwrap_or(rest.len());
+        if end == 0 {
+            return None;
+        }
+        out.push(&rest[..end]);
+        rest = rest[end..].trim_start();
+    }
+    Some((out, rest.trim_end()))
 }
 
 fn parse<T: std::str::FromStr>(path: &Path, line: usize, field: &str) -> Result<T> {
@@ -340,56 +403,62 @@ fn parse<T: std::str::FromStr>(path: &Path, line: usize, field: &str) -> Result<
 }
 
 fn read_cameras_txt(path: &Path) -> Result<BTreeMap<u32, ColmapCamera>> {
+    let text = input::read_text(path)?;
     let mut cameras = BTreeMap::new();
-    for (n, line) in lines(path)?.iter().filter(|(_, l)| !l.trim().is_empty()) {
-        let f: Vec<&str> = line.split_whitespace().collect();
-        if f.len() < 4 {
+    for (n, line) in lines(&text).filter(|(_, l)| !l.trim().is_empty()) {
+        let Some((f, rest)) = fields(line, 4) else {
             return Err(Error::format(path, format!("line {n}: expected CAMERA_ID MODEL WIDTH HEIGHT PARAMS")));
+        };
+        let params: Vec<&str> = rest.split_whitespace().take(MAX_CAMERA_PARAMS + 1).collect();
+        let count = MODELS.iter().find(|m| m.1 == f[1]).map_or(params.len().min(MAX_CAMERA_PARAMS), |m| m.2);
+        if params.len() != count {
+            return Err(Error::format(path, format!("line {n}: {} needs {count} parameters", f[1])));
         }
-        let count = MODELS.iter().find(|m| m.1 == f[1]).map(|m| m.2);
-        if count.is_some_and(|c| f.len() != 4 + c) {
-            return Err(Error::format(path, format!("line {n}: {} needs {} parameters", f[1], count.unwrap_or(0))));
-        }
-        let params = f[4..].iter().map(|v| parse(path, *n, v)).collect::<Result<_>>()?;
+        let params = params.iter().map(|v| parse(path, n, v)).collect::<Result<_>>()?;
         let camera =
-            ColmapCamera { model: f[1].into(), width: parse(path, *n, f[2])?, height: parse(path, *n, f[3])?, params };
-        cameras.insert(parse(path, *n, f[0])?, camera);
+            ColmapCamera { model: f[1].into(), width: parse(path, n, f[2])?, height: parse(path, n, f[3])?, params };
+        cameras.insert(parse(path, n, f[0])?, camera);
     }
     Ok(cameras)
 }
 
 fn read_images_txt(path: &Path) -> Result<Vec<ColmapImage>> {
-    let lines = lines(path)?;
+    let text = input::read_text(path)?;
+    let mut lines = lines(&text);
     let mut images = Vec::new();
-    for pair in lines.chunks(2) {
-        let (n, header) = &pair[0];
+    let mut keypoints = 0;
+    while let Some((n, header)) = lines.next() {
+        let keypoint_line = lines.next();
         if header.trim().is_empty() {
             continue;
         }
-        let f: Vec<&str> = header.split_whitespace().collect();
-        if f.len() < 10 {
+        let Some((f, name)) = fields(header, 9).filter(|(_, name)| !name.is_empty()) else {
             return Err(Error::format(
                 path,
                 format!("line {n}: expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME"),
             ));
-        }
-        let number = |k: usize| parse::<f64>(path, *n, f[k]);
+        };
+        let number = |k: usize| parse::<f64>(path, n, f[k]);
         let mut points2d = Vec::new();
-        if let Some((m, points)) = pair.get(1) {
-            let v: Vec<&str> = points.split_whitespace().collect();
-            for p in v.chunks(3) {
-                if p.len() < 3 {
-                    return Err(Error::format(path, format!("line {m}: keypoints come in threes (X Y POINT3D_ID)")));
-                }
-                points2d.push((parse(path, *m, p[0])?, parse(path, *m, p[1])?, parse(path, *m, p[2])?));
+        if let Some((m, line)) = keypoint_line {
+            let values = line.split_whitespace().count();
+            if values % 3 != 0 {
+                return Err(Error::format(path, format!("line {m}: keypoints come in threes (X Y POINT3D_ID)")));
+            }
+            keypoints += values / 3;
+            check_total(path, keypoints, MAX_KEYPOINTS, "keypoints")?;
+            points2d.reserve_exact(values / 3);
+            let mut v = line.split_whitespace();
+            while let (Some(x), Some(y), Some(id)) = (v.next(), v.next(), v.next()) {
+                points2d.push((parse(path, m, x)?, parse(path, m, y)?, parse(path, m, id)?));
             }
         }
         images.push(ColmapImage {
-            id: parse(path, *n, f[0])?,
+            id: parse(path, n, f[0])?,
             qvec: [number(1)?, number(2)?, number(3)?, number(4)?],
             tvec: [number(5)?, number(6)?, number(7)?],
-            camera_id: parse(path, *n, f[8])?,
-            name: f[9..].join(" "),
+            camera_id: parse(path, n, f[8])?,
+            name: name.to_string(),
             points2d,
         });
     }
@@ -400,13 +469,14 @@ fn read_points_txt(path: &Path) -> Result<BTreeMap<u64, [f64; 3]>> {
     if !path.is_file() {
         return Ok(BTreeMap::new());
     }
+    let text = input::read_text(path)?;
     let mut points = BTreeMap::new();
-    for (n, line) in lines(path)?.iter().filter(|(_, l)| !l.trim().is_empty()) {
-        let f: Vec<&str> = line.split_whitespace().collect();
-        if f.len() < 4 {
+    for (n, line) in lines(&text).filter(|(_, l)| !l.trim().is_empty()) {
+        let Some((f, _)) = fields(line, 4) else {
             return Err(Error::format(path, format!("line {n}: expected POINT3D_ID X Y Z ...")));
-        }
-        points.insert(parse(path, *n, f[0])?, [parse(path, *n, f[1])?, parse(path, *n, f[2])?, parse(path, *n, f[3])?]);
+        };
+        points.insert(parse(path, n, f[0])?, [parse(path, n, f[1])?, parse(path, n, f[2])?, parse(path, n, f[3])?]);
+        check_total(path, points.len(), MAX_POINTS, "3D points")?;
     }
     Ok(points)
 }

@@ -1,16 +1,21 @@
 //! nerfstudio's `transforms.json`: camera-to-world matrices in the OpenGL convention (x right,
 //! y up, z backwards) and intrinsics (global or per frame) with pixel centres at +0.5, as
 //! rmvp's. Reading and writing turn the camera axes: `c2w_opencv = c2w_opengl diag(1, -1, -1)`.
+//!
+//! The intrinsics sit in the same objects as the frame's other fields; they are read field by
+//! field, unknown fields skipped unkept and a field given twice refused (see
+//! [`io::json`](crate::io::json) on what reading may cost).
 
 use crate::camera::{Camera, Distortion};
 use crate::io::json::{read_json, write_json};
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Matrix4, Vector3};
-use serde::{Deserialize, Serialize};
+use serde::de::{Error as _, IgnoredAny, MapAccess, Visitor};
+use serde::{Deserialize, Deserializer, Serialize};
 use std::path::Path;
 
 /// Intrinsics as nerfstudio names them (all optional: per frame they override the file's).
-#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Intrinsics {
     /// Focal length x, pixels.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -48,7 +53,7 @@ pub struct Intrinsics {
 }
 
 /// One frame.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Frame {
     /// Image, relative to the file.
     pub file_path: String,
@@ -63,7 +68,7 @@ pub struct Frame {
 }
 
 /// A `transforms.json`.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Transforms {
     /// `OPENCV` (nerfstudio's name of the pinhole model with OpenCV distortion).
     #[serde(default = "opencv")]
@@ -111,6 +116,24 @@ impl Intrinsics {
         }
     }
 
+    /// Read the value of `key` into the field it names; `false` when it names none.
+    fn read_field<'de, A: MapAccess<'de>>(&mut self, key: &str, map: &mut A) -> std::result::Result<bool, A::Error> {
+        match key {
+            "fl_x" => set(&mut self.fl_x, key, map),
+            "fl_y" => set(&mut self.fl_y, key, map),
+            "cx" => set(&mut self.cx, key, map),
+            "cy" => set(&mut self.cy, key, map),
+            "w" => set(&mut self.w, key, map),
+            "h" => set(&mut self.h, key, map),
+            "k1" => set(&mut self.k1, key, map),
+            "k2" => set(&mut self.k2, key, map),
+            "k3" => set(&mut self.k3, key, map),
+            "p1" => set(&mut self.p1, key, map),
+            "p2" => set(&mut self.p2, key, map),
+            _ => Ok(false),
+        }
+    }
+
     /// Whether `self` and `other` agree to [`SHARED_INTRINSICS_TOLERANCE`] (relative), sizes
     /// exactly.
     fn agrees_with(&self, other: &Intrinsics) -> bool {
@@ -150,6 +173,97 @@ impl Intrinsics {
             p1: self.p1.or(shared.p1),
             p2: self.p2.or(shared.p2),
         }
+    }
+}
+
+/// Read the next value of `map` into `field`, refusing a field given twice.
+fn set<'de, T: Deserialize<'de>, A: MapAccess<'de>>(
+    field: &mut Option<T>,
+    key: &str,
+    map: &mut A,
+) -> std::result::Result<bool, A::Error> {
+    if field.is_some() {
+        return Err(A::Error::custom(format!("field `{key}` given twice")));
+    }
+    *field = map.next_value()?;
+    Ok(true)
+}
+
+/// Read a JSON object field by field: `read(key, map)` takes the value of a field it knows and
+/// says so; the values of the others are skipped.
+fn visit_fields<'de, A: MapAccess<'de>>(
+    mut map: A,
+    mut read: impl FnMut(&str, &mut A) -> std::result::Result<bool, A::Error>,
+) -> std::result::Result<(), A::Error> {
+    while let Some(key) = map.next_key::<String>()? {
+        if !read(&key, &mut map)? {
+            map.next_value::<IgnoredAny>()?;
+        }
+    }
+    Ok(())
+}
+
+impl<'de> Deserialize<'de> for Frame {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> std::result::Result<Self, D::Error> {
+        struct FrameVisitor;
+        impl<'de> Visitor<'de> for FrameVisitor {
+            type Value = Frame;
+
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a frame object")
+            }
+
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> std::result::Result<Frame, A::Error> {
+                let (mut file_path, mut transform_matrix, mut mask_path) = (None, None, None);
+                let mut intrinsics = Intrinsics::default();
+                visit_fields(map, |key, map| match key {
+                    "file_path" => set(&mut file_path, key, map),
+                    "transform_matrix" => set(&mut transform_matrix, key, map),
+                    "mask_path" => set(&mut mask_path, key, map),
+                    _ => intrinsics.read_field(key, map),
+                })?;
+                Ok(Frame {
+                    file_path: file_path.ok_or_else(|| A::Error::missing_field("file_path"))?,
+                    transform_matrix: transform_matrix.ok_or_else(|| A::Error::missing_field("transform_matrix"))?,
+                    mask_path,
+                    intrinsics,
+                })
+            }
+        }
+        deserializer.deserialize_map(FrameVisitor)
+    }
+}
+
+impl<'de> Deserialize<'de> for Transforms {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> std::result::Result<Self, D::Error> {
+        struct TransformsVisitor;
+        impl<'de> Visitor<'de> for TransformsVisitor {
+            type Value = Transforms;
+
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a transforms object")
+            }
+
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> std::result::Result<Transforms, A::Error> {
+                let (mut camera_model, mut frames, mut train_filenames, mut val_filenames) = (None, None, None, None);
+                let mut intrinsics = Intrinsics::default();
+                visit_fields(map, |key, map| match key {
+                    "camera_model" => set(&mut camera_model, key, map),
+                    "frames" => set(&mut frames, key, map),
+                    "train_filenames" => set(&mut train_filenames, key, map),
+                    "val_filenames" => set(&mut val_filenames, key, map),
+                    _ => intrinsics.read_field(key, map),
+                })?;
+                Ok(Transforms {
+                    camera_model: camera_model.unwrap_or_else(opencv),
+                    intrinsics,
+                    frames: frames.ok_or_else(|| A::Error::missing_field("frames"))?,
+                    train_filenames,
+                    val_filenames,
+                })
+            }
+        }
+        deserializer.deserialize_map(TransformsVisitor)
     }
 }
 

@@ -136,7 +136,12 @@ pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
 
 /// Read a UTF-8 text file of at most [`MAX_TEXT_BYTES`].
 pub fn read_text(path: &Path) -> Result<String> {
-    let bytes = read_bytes_limited(path, MAX_TEXT_BYTES)?;
+    read_text_limited(path, MAX_TEXT_BYTES)
+}
+
+/// Read a UTF-8 text file of at most `limit` bytes.
+pub fn read_text_limited(path: &Path, limit: u64) -> Result<String> {
+    let bytes = read_bytes_limited(path, limit)?;
     String::from_utf8(bytes)
         .map_err(|e| Error::format(path, format!("not UTF-8 text (byte {})", e.utf8_error().valid_up_to())))
 }

@@ -18,7 +18,7 @@
 
 use super::{array_from_image, image_from_array};
 use crate::camera::{matrix_from_rows, matrix_rows};
-use crate::io::{exr, input, npy, png, write_bytes_atomically};
+use crate::io::{exr, input, json, npy, png, write_bytes_atomically};
 use crate::polarization::{aop_from_u16, aop_to_u16, POLARIZER_ANGLES_DEG};
 use crate::{visualize, Camera, Error, Image, Mesh, PolarizerImages, Result, Scene, Split, Stokes, View};
 use nalgebra::{Matrix3x4, Matrix4, Vector3};
@@ -165,17 +165,28 @@ pub(crate) fn cameras_by_keys(
 }
 
 fn read_gt_cameras(path: &Path) -> Result<(Vec<GtCamera>, serde_json::Map<String, serde_json::Value>)> {
-    let text = crate::io::input::read_text(path)?;
-    let mut json: serde_json::Map<String, serde_json::Value> =
+    let text = json::read_json_text(path)?;
+    let json::RawFields(fields) =
         serde_json::from_str(&text).map_err(|e| Error::format(path, format!("bad JSON: {e}")))?;
-    let cameras = json.remove("cameras").ok_or_else(|| Error::format(path, "no \"cameras\" list"))?;
-    let cameras: Vec<GtCamera> =
-        serde_json::from_value(cameras).map_err(|e| Error::format(path, format!("bad camera entry: {e}")))?;
+    let mut cameras = None;
+    let mut metadata = serde_json::Map::new();
+    for (key, raw) in fields {
+        if key == "cameras" {
+            let list: Vec<GtCamera> =
+                serde_json::from_str(raw.get()).map_err(|e| Error::format(path, format!("bad camera entry: {e}")))?;
+            cameras = Some(list);
+        } else {
+            let value =
+                json::parse_free_form(raw).map_err(|why| Error::format(path, format!("field {key:?}: {why}")))?;
+            metadata.insert(key, value);
+        }
+    }
+    let cameras = cameras.ok_or_else(|| Error::format(path, "no \"cameras\" list"))?;
     for camera in &cameras {
         // Names become file names under gt/.
         input::file_name(&camera.name).map_err(|why| Error::format(path, format!("camera {why}")))?;
     }
-    Ok((cameras, json))
+    Ok((cameras, metadata))
 }
 
 fn read_train_view(

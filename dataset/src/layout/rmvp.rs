@@ -13,7 +13,7 @@
 //! ```
 
 use crate::camera::CameraRecord;
-use crate::io::{exr, input, png, write_bytes_atomically};
+use crate::io::{exr, input, json, png, write_bytes_atomically};
 use crate::polarization::POLARIZER_ANGLES_DEG;
 use crate::{Camera, Error, Image, Mesh, PolarizerImages, Result, Scene, Split, Stokes, View};
 use nalgebra::Matrix4;
@@ -45,8 +45,8 @@ pub struct SceneManifest {
     /// Environment map file.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub env_map: Option<String>,
-    /// Provenance.
-    #[serde(default, skip_serializing_if = "serde_json::Map::is_empty")]
+    /// Provenance (free-form, at most [`json::MAX_FREE_FORM_BYTES`]).
+    #[serde(default, skip_serializing_if = "serde_json::Map::is_empty", deserialize_with = "json::free_form")]
     pub metadata: serde_json::Map<String, serde_json::Value>,
 }
 
@@ -115,7 +115,7 @@ fn from_rows4(r: &[[f64; 4]; 4]) -> Matrix4<f64> {
 /// Read a scene in our layout.
 pub fn read(dir: &Path) -> Result<Scene> {
     let path = dir.join(MANIFEST);
-    let text = input::read_text(&path)?;
+    let text = json::read_json_text(&path)?;
     let manifest: SceneManifest =
         serde_json::from_str(&text).map_err(|e| Error::format(&path, format!("bad manifest: {e}")))?;
     if manifest.format != FORMAT {

@@ -28,6 +28,9 @@ use toml::Spanned;
 
 /// The most tasks a plan may expand to.
 pub const MAX_TASKS: usize = 100_000;
+/// The largest plan file read, in bytes: a plan names globs, variants and seeds, a few
+/// kilobytes; a TOML document takes tens of times its text while parsed.
+pub const MAX_PLAN_BYTES: u64 = 1 << 20;
 /// The most paths a dataset glob may visit before it is refused (a loop of links, a glob of the
 /// whole disk).
 pub const MAX_GLOB_VISITS: usize = 100_000;
@@ -176,7 +179,7 @@ impl BatchPlan {
     /// syntax error, an unknown option, a dataset path or glob that finds no scene, a dataset
     /// without the ground truth evaluation needs, a variant with both cues off, duplicate names.
     pub fn read(path: &Path) -> Result<Self> {
-        let text = rmvp_dataset::io::input::read_text(path)?;
+        let text = rmvp_dataset::io::input::read_text_limited(path, MAX_PLAN_BYTES)?;
         let fault = |span: Option<Range<usize>>, why: String| Error::Plan {
             path: path.to_path_buf(),
             line: span.map(|s| line_of(&text, s.start)),
