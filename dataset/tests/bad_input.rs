@@ -129,13 +129,14 @@ fn a_missing_view_file_is_named() {
 }
 
 #[test]
-fn a_mask_of_the_wrong_size_is_reported() {
+fn a_mask_of_the_wrong_size_names_the_mask_and_the_file_it_disagrees_with() {
     let (_tmp, dir) = copy_of_spot();
     let mask = dir.join("mask/0002.png");
     png::write_png_u8(&mask, &Image::new(64, 64, 1)).unwrap();
     std::fs::remove_file(dir.join("gt/mask/002.png")).unwrap();
     let err = read_scene(&dir).unwrap_err().to_string();
-    assert!(err.contains("view 002") && err.contains("mask is 64x64") && err.contains("128x128"), "{err}");
+    let s0 = dir.join("s0/0002.npy");
+    assert_eq!(err, format!("{}: is 64x64, but {} is 128x128", mask.display(), s0.display()));
 }
 
 #[test]

@@ -1,39 +1,16 @@
-//! Mutated files against every reader family: truncations, byte flips, forged sizes and counts,
-//! inserted bytes and numbers. Each family runs in a child process of this test binary with
-//! 1 GiB of data memory (`RLIMIT_DATA`) and a deadline, so that an allocation from a forged size,
-//! a hang or a panic fails the test and names the mutation. A mutated file must be refused with
-//! an error that names it, or read: never a panic, never more memory, never a hang.
+//! Mutated files against every reader family of the dataset crate, through the mutation engine
+//! of `rmvp-testkit` (each family in a child process under 2 GiB of address space, its peak
+//! memory measured, a deadline): a mutated file is refused with an error that names it, or read;
+//! never a panic, never more memory, never a hang.
 
+use rmvp_dataset::exchange::colmap::{ColmapCamera, ColmapImage, ColmapModel};
+use rmvp_dataset::exchange::nerfstudio::Transforms;
 use rmvp_dataset::io::{exr, hdr, npy, picture, png};
 use rmvp_dataset::layout::nersp;
-use rmvp_dataset::rng::Rng;
 use rmvp_dataset::session::SessionManifest;
 use rmvp_dataset::Mesh;
+use rmvp_testkit::mutation::{no_fixup, outcome, run_family, Family};
 use std::path::Path;
-use std::process::Command;
-use std::time::{Duration, Instant};
-
-/// Mutations per family.
-const MUTATIONS: usize = 200;
-/// Data memory a family's child may use.
-const MEMORY_LIMIT: u64 = 1 << 30;
-/// How long a family's child may take.
-const DEADLINE: Duration = Duration::from_secs(90);
-/// The variable that makes this binary a child reading one family.
-const CHILD: &str = "RMVP_MUTATION_FAMILY";
-
-/// A reader family: its seed file (a valid one) and how to read a file of it.
-struct Family {
-    name: &'static str,
-    file_name: &'static str,
-    seed: fn(&Path) -> Vec<u8>,
-    read: fn(&Path) -> Result<(), rmvp_dataset::Error>,
-    /// Make a mutated file consistent again where its format checks itself (a PNG's header
-    /// checksum), so that a forged size reaches the reader as a forger would send it.
-    fixup: fn(&mut [u8]),
-}
-
-fn no_fixup(_: &mut [u8]) {}
 
 /// A correct checksum for a PNG's header chunk, whatever its fields now say.
 fn png_header_crc(bytes: &mut [u8]) {
@@ -91,6 +68,16 @@ fn picture_seed(format: image::ImageFormat) -> Vec<u8> {
     bytes
 }
 
+/// The spot's preview as a TIFF of 32-bit float RGB samples (linear light).
+fn float_tiff_seed() -> Vec<u8> {
+    let picture = image::load_from_memory(&spot("image/0000.png")).unwrap().into_rgb32f();
+    let mut bytes = Vec::new();
+    image::DynamicImage::ImageRgb32F(picture)
+        .write_to(&mut std::io::Cursor::new(&mut bytes), image::ImageFormat::Tiff)
+        .unwrap();
+    bytes
+}
+
 /// The spot's S0 as a Radiance HDR file (run-length scanlines, as our writer stores them).
 fn hdr_seed(dir: &Path) -> Vec<u8> {
     let s0 = npy::read_npy::<f32>(&rmvp_testkit::fixture("spot_nersp").join("s0/0000.npy")).unwrap();
@@ -111,318 +98,283 @@ fn flat_hdr_seed() -> Vec<u8> {
     bytes
 }
 
+/// A COLMAP model of three OPENCV cameras looking at the origin, with keypoints and points.
+fn seed_model() -> ColmapModel {
+    let mut model = ColmapModel::default();
+    for id in 1..=3u32 {
+        let params = vec![600.0, 602.0, 320.5, 240.5, -0.05, 0.01, 0.001, -0.002];
+        model.cameras.insert(id, ColmapCamera { model: "OPENCV".into(), width: 640, height: 480, params });
+        let angle = id as f64 * 0.4;
+        let (s, c) = (angle / 2.0).sin_cos();
+        let points2d = (0..20).map(|k| (10.5 + k as f64, 20.25 * k as f64, if k % 3 == 0 { -1 } else { k })).collect();
+        model.images.push(ColmapImage {
+            id,
+            qvec: [c, 0.0, s, 0.0],
+            tvec: [0.1, -0.2, 4.0],
+            camera_id: id,
+            name: format!("{:03}.png", id - 1),
+            points2d,
+        });
+    }
+    for k in 0..20u64 {
+        model.points.insert(k, [k as f64 * 0.01, -0.02, 0.5]);
+    }
+    model
+}
+
+/// `cameras.bin` of `model`, as COLMAP writes it (OPENCV is model 4).
+fn colmap_binary_cameras(model: &ColmapModel) -> Vec<u8> {
+    let mut b = (model.cameras.len() as u64).to_le_bytes().to_vec();
+    for (id, camera) in &model.cameras {
+        b.extend(id.to_le_bytes());
+        b.extend(4i32.to_le_bytes());
+        b.extend((camera.width as u64).to_le_bytes());
+        b.extend((camera.height as u64).to_le_bytes());
+        camera.params.iter().for_each(|p| b.extend(p.to_le_bytes()));
+    }
+    b
+}
+
+/// `images.bin` of `model`, as COLMAP writes it.
+fn colmap_binary_images(model: &ColmapModel) -> Vec<u8> {
+    let mut b = (model.images.len() as u64).to_le_bytes().to_vec();
+    for image in &model.images {
+        b.extend(image.id.to_le_bytes());
+        image.qvec.iter().chain(&image.tvec).for_each(|v| b.extend(v.to_le_bytes()));
+        b.extend(image.camera_id.to_le_bytes());
+        b.extend(image.name.as_bytes());
+        b.push(0);
+        b.extend((image.points2d.len() as u64).to_le_bytes());
+        for (x, y, id) in &image.points2d {
+            b.extend(x.to_le_bytes());
+            b.extend(y.to_le_bytes());
+            b.extend(id.to_le_bytes());
+        }
+    }
+    b
+}
+
 fn families() -> Vec<Family> {
     vec![
         Family {
             name: "png",
             file_name: "m.png",
             seed: |_| spot("input_azimuth_maps/0000.png"),
-            read: |p| png::read_png(p).map(drop),
+            read: |p| outcome(png::read_png(p)),
             fixup: png_header_crc,
         },
         Family {
             name: "exr",
             file_name: "m.exr",
             seed: |_| spot("gt/normal/000.exr"),
-            read: |p| exr::read_exr_channels(p).map(drop),
+            read: |p| outcome(exr::read_exr_channels(p)),
             fixup: no_fixup,
         },
         Family {
             name: "npy",
             file_name: "m.npy",
             seed: |_| spot("s0/0000.npy"),
-            read: |p| npy::read_npy::<f32>(p).map(drop),
+            read: |p| outcome(npy::read_npy::<f32>(p)),
             fixup: no_fixup,
         },
         Family {
             name: "npz",
             file_name: "cameras.npz",
             seed: |_| spot("cameras.npz"),
-            read: |p| nersp::read_cameras(p).map(drop),
+            read: |p| outcome(nersp::read_cameras(p)),
             fixup: no_fixup,
         },
         Family {
             name: "ply-binary",
             file_name: "m.ply",
             seed: |d| small_mesh(d, "seed.ply"),
-            read: |p| Mesh::read(p).map(drop),
+            read: |p| outcome(Mesh::read(p)),
             fixup: no_fixup,
         },
         Family {
             name: "ply-ascii",
             file_name: "m.ply",
             seed: |d| small_mesh(d, "seed.ascii.ply"),
-            read: |p| Mesh::read(p).map(drop),
+            read: |p| outcome(Mesh::read(p)),
             fixup: no_fixup,
         },
         Family {
             name: "obj",
             file_name: "m.obj",
             seed: |d| small_mesh(d, "seed.obj"),
-            read: |p| Mesh::read(p).map(drop),
+            read: |p| outcome(Mesh::read(p)),
             fixup: no_fixup,
         },
         Family {
             name: "jpeg",
             file_name: "m.jpg",
             seed: |_| picture_seed(image::ImageFormat::Jpeg),
-            read: |p| picture::read_picture(p).map(drop),
+            read: |p| outcome(picture::read_picture(p)),
             fixup: no_fixup,
         },
         Family {
             name: "tiff",
             file_name: "m.tif",
             seed: |_| picture_seed(image::ImageFormat::Tiff),
-            read: |p| picture::read_picture(p).map(drop),
+            read: |p| outcome(picture::read_picture(p)),
             fixup: no_fixup,
         },
-        Family { name: "stl", file_name: "m.stl", seed: stl_seed, read: |p| Mesh::read(p).map(drop), fixup: no_fixup },
+        Family {
+            name: "tiff-float",
+            file_name: "m.tif",
+            seed: |_| float_tiff_seed(),
+            read: |p| outcome(picture::read_picture(p)),
+            fixup: no_fixup,
+        },
+        Family { name: "stl", file_name: "m.stl", seed: stl_seed, read: |p| outcome(Mesh::read(p)), fixup: no_fixup },
         Family {
             name: "hdr",
             file_name: "m.hdr",
             seed: hdr_seed,
-            read: |p| hdr::read_hdr(p).map(drop),
+            read: |p| outcome(hdr::read_hdr(p)),
             fixup: no_fixup,
         },
         Family {
             name: "hdr-flat",
             file_name: "m.hdr",
             seed: |_| flat_hdr_seed(),
-            read: |p| hdr::read_hdr(p).map(drop),
+            read: |p| outcome(hdr::read_hdr(p)),
             fixup: no_fixup,
         },
         Family {
             name: "session",
             file_name: "session.json",
             seed: |_| include_bytes!("data/session.json").to_vec(),
-            read: |p| SessionManifest::read(p.parent().unwrap()).map(drop),
+            read: |p| outcome(SessionManifest::read(p.parent().unwrap())),
+            fixup: no_fixup,
+        },
+        Family {
+            name: "colmap-bin",
+            file_name: "images.bin",
+            seed: |_| colmap_binary_images(&seed_model()),
+            read: |p| {
+                let dir = p.parent().unwrap();
+                std::fs::write(dir.join("cameras.bin"), colmap_binary_cameras(&seed_model())).unwrap();
+                outcome(ColmapModel::read(dir))
+            },
+            fixup: no_fixup,
+        },
+        Family {
+            name: "colmap-text",
+            file_name: "images.txt",
+            seed: |d| {
+                seed_model().write_text(d).unwrap();
+                std::fs::read(d.join("images.txt")).unwrap()
+            },
+            read: |p| {
+                let dir = p.parent().unwrap();
+                let model = tempfile::tempdir().unwrap();
+                seed_model().write_text(model.path()).unwrap();
+                for name in ["cameras.txt", "points3D.txt"] {
+                    std::fs::copy(model.path().join(name), dir.join(name)).unwrap();
+                }
+                outcome(ColmapModel::read(dir).and_then(|m| m.cameras(dir)))
+            },
+            fixup: no_fixup,
+        },
+        Family {
+            name: "transforms",
+            file_name: "transforms.json",
+            seed: |d| {
+                let model = seed_model();
+                let cameras = model.cameras(d).unwrap();
+                let frames: Vec<_> = cameras.into_iter().map(|(n, c)| (format!("images/{n}"), None, c)).collect();
+                let path = d.join("transforms.json");
+                Transforms::from_cameras(&frames).write(&path).unwrap();
+                std::fs::read(path).unwrap()
+            },
+            read: |p| outcome(Transforms::read(p).and_then(|t| t.cameras(p))),
             fixup: no_fixup,
         },
     ]
 }
 
-/// Numbers a forged size or count is made of.
-const FORGED: [u64; 8] = [0, 1 << 20, 1 << 24, 1 << 31, u32::MAX as u64, 100_000, 200_000, u64::MAX];
-
-/// Where a forged field of `width` bytes goes: half the time a 4-byte-aligned offset in the first
-/// 64 bytes, else anywhere in the first 512.
-fn forged_offset(rng: &mut Rng, len: usize, width: usize) -> usize {
-    let room = len.saturating_sub(width).max(1);
-    if rng.next_u32().is_multiple_of(2) {
-        (4 * (rng.next_u32() as usize % 16)).min(room - 1)
-    } else {
-        rng.next_u32() as usize % room.min(512)
-    }
-}
-
-/// Forged fields swept before the random mutations: every 4-byte-aligned offset of the first 64
-/// bytes, with 2^20 and 2^24, big- and little-endian (the size fields of binary headers).
-const SWEPT: usize = 16 * 4;
-
-/// The `i`-th swept forgery of `seed`, and what it was.
-fn sweep(seed: &[u8], i: usize) -> (Vec<u8>, String) {
-    let mut bytes = seed.to_vec();
-    let at = 4 * (i / 4);
-    let value: u32 = if i.is_multiple_of(2) { 1 << 20 } else { 1 << 24 };
-    let big_endian = (i / 2).is_multiple_of(2);
-    let word = if big_endian { value.to_be_bytes() } else { value.to_le_bytes() };
-    if at + 4 <= bytes.len() {
-        bytes[at..at + 4].copy_from_slice(&word);
-    }
-    let order = if big_endian { "big" } else { "little" };
-    (bytes, format!("forged {order}-endian {value} at byte {at}"))
-}
-
-/// One mutation of `seed`, and what it was.
-fn mutate(seed: &[u8], rng: &mut Rng) -> (Vec<u8>, String) {
-    let mut bytes = seed.to_vec();
-    let at = |rng: &mut Rng, len: usize| (rng.next_u32() as usize) % len.max(1);
-    match rng.next_u32() % 6 {
-        0 => {
-            let keep = at(rng, bytes.len());
-            bytes.truncate(keep);
-            (bytes, format!("truncated to {keep} bytes"))
-        }
-        1 => {
-            let flips = 1 + rng.next_u32() % 8;
-            for _ in 0..flips {
-                let i = at(rng, bytes.len());
-                bytes[i] ^= 1 << (rng.next_u32() % 8);
-            }
-            (bytes, format!("{flips} bits flipped"))
-        }
-        2 => {
-            // A forged 32-bit field: sizes and counts live near the start of every format, most
-            // at aligned offsets of its first 64 bytes.
-            let i = forged_offset(rng, bytes.len(), 4);
-            let value = FORGED[(rng.next_u32() as usize) % FORGED.len()] as u32;
-            let big_endian = rng.next_u32().is_multiple_of(2);
-            let word = if big_endian { value.to_be_bytes() } else { value.to_le_bytes() };
-            bytes[i..i + 4].copy_from_slice(&word);
-            (bytes, format!("forged 32-bit {value} at byte {i}"))
-        }
-        3 => {
-            // A number in the text replaced by a forged one, NaN or a negative.
-            let text_numbers: Vec<usize> =
-                (1..bytes.len()).filter(|&i| bytes[i].is_ascii_digit() && !bytes[i - 1].is_ascii_digit()).collect();
-            if text_numbers.is_empty() {
-                bytes.clear();
-                return (bytes, "emptied".into());
-            }
-            let i = text_numbers[(rng.next_u32() as usize) % text_numbers.len()];
-            let end = (i..bytes.len()).find(|&k| !bytes[k].is_ascii_digit()).unwrap_or(bytes.len());
-            let choices = ["4294967296", "99999999999999999999", "nan", "-1", "1e308", "0"];
-            let by = choices[(rng.next_u32() as usize) % choices.len()];
-            bytes.splice(i..end, by.bytes());
-            (bytes, format!("number at byte {i} replaced by {by}"))
-        }
-        4 => {
-            let i = at(rng, bytes.len());
-            let n = 1 + rng.next_u32() % 64;
-            let noise: Vec<u8> = (0..n).map(|_| rng.next_u32() as u8).collect();
-            bytes.splice(i..i, noise);
-            (bytes, format!("{n} bytes inserted at {i}"))
-        }
-        _ => {
-            // A forged 64-bit field.
-            let i = forged_offset(rng, bytes.len(), 8);
-            let value = FORGED[(rng.next_u32() as usize) % FORGED.len()];
-            bytes[i..i + 8].copy_from_slice(&value.to_le_bytes());
-            (bytes, format!("forged 64-bit {value} at byte {i}"))
-        }
-    }
-}
-
-/// In the child: read every mutation of the family, print one line before each (the last line
-/// names the culprit of an abort or a hang) and a summary.
-fn child(family: &Family) {
-    let dir = tempfile::tempdir().unwrap();
-    let seed = (family.seed)(dir.path());
-    (family.read)(&{
-        let p = dir.path().join(family.file_name);
-        std::fs::write(&p, &seed).unwrap();
-        p
-    })
-    .unwrap_or_else(|e| panic!("the seed file of {} does not read: {e}", family.name));
-    let mut rng = Rng::for_pixel(39, family.name.len() as u32, family.name.as_bytes()[0] as u64);
-    let (mut refused, mut read) = (0, 0);
-    let mut panics = Vec::new();
-    std::panic::set_hook(Box::new(|_| {}));
-    for i in 0..MUTATIONS {
-        let (mut bytes, what) = if i < SWEPT { sweep(&seed, i) } else { mutate(&seed, &mut rng) };
-        (family.fixup)(&mut bytes);
-        let case = dir.path().join(format!("{i}"));
-        std::fs::create_dir_all(&case).unwrap();
-        let path = case.join(family.file_name);
-        std::fs::write(&path, &bytes).unwrap();
-        println!("mutation {i}: {what}");
-        match std::panic::catch_unwind(|| (family.read)(&path)) {
-            Ok(Ok(())) => read += 1,
-            Ok(Err(e)) => {
-                let message = e.to_string();
-                assert!(
-                    message.contains(&path.display().to_string()),
-                    "mutation {i} ({what}): {message:?} does not name the file"
-                );
-                refused += 1;
-            }
-            Err(_) => panics.push(format!("mutation {i} ({what})")),
-        }
-    }
-    println!("summary {}: {MUTATIONS} mutations, {refused} refused, {read} read, {} panics", family.name, panics.len());
-    assert!(panics.is_empty(), "panics: {panics:?}");
-}
-
-/// In the parent: run the family's child under the memory limit and the deadline.
-fn run_family(name: &str) {
-    let families = families();
-    let family = families.iter().find(|f| f.name == name).unwrap();
-    if let Ok(wanted) = std::env::var(CHILD) {
-        if wanted == name {
-            child(family);
-        }
-        return;
-    }
-    let test = format!("{}_family", name.replace('-', "_"));
-    let mut command = Command::new(std::env::current_exe().unwrap());
-    command.args([test.as_str(), "--exact", "--nocapture", "--test-threads=1"]).env(CHILD, name);
-    let started = Instant::now();
-    let run = rmvp_testkit::run_limited(&mut command, MEMORY_LIMIT, DEADLINE);
-    let lines: Vec<&str> = run.stdout.lines().collect();
-    let last = lines.iter().rev().find(|l| l.starts_with("mutation ")).copied().unwrap_or_default();
-    let summary = lines.iter().find(|l| l.starts_with("summary ")).copied();
-    let stderr = &run.stderr;
-    match run.status {
-        None => panic!("{name}: hung past {DEADLINE:?} at {last}"),
-        Some(s) if !s.success() => panic!("{name}: the reader failed ({s}) at {last}\n{stderr}"),
-        Some(_) => {}
-    }
-    let summary = summary.unwrap_or_else(|| panic!("{name}: no summary\n{}", lines.join("\n")));
-    eprintln!("{summary} in {:.1} s", started.elapsed().as_secs_f64());
-    assert!(summary.contains(&format!("{MUTATIONS} mutations")) && summary.ends_with(", 0 panics"), "{summary}");
-}
-
 #[test]
 fn png_family() {
-    run_family("png");
+    run_family(&families(), "png");
 }
 
 #[test]
 fn jpeg_family() {
-    run_family("jpeg");
+    run_family(&families(), "jpeg");
 }
 
 #[test]
 fn hdr_family() {
-    run_family("hdr");
+    run_family(&families(), "hdr");
 }
 
 #[test]
 fn hdr_flat_family() {
-    run_family("hdr-flat");
+    run_family(&families(), "hdr-flat");
 }
 
 #[test]
 fn tiff_family() {
-    run_family("tiff");
+    run_family(&families(), "tiff");
 }
 
 #[test]
 fn exr_family() {
-    run_family("exr");
+    run_family(&families(), "exr");
 }
 
 #[test]
 fn npy_family() {
-    run_family("npy");
+    run_family(&families(), "npy");
 }
 
 #[test]
 fn npz_family() {
-    run_family("npz");
+    run_family(&families(), "npz");
 }
 
 #[test]
 fn ply_binary_family() {
-    run_family("ply-binary");
+    run_family(&families(), "ply-binary");
 }
 
 #[test]
 fn ply_ascii_family() {
-    run_family("ply-ascii");
+    run_family(&families(), "ply-ascii");
 }
 
 #[test]
 fn obj_family() {
-    run_family("obj");
+    run_family(&families(), "obj");
+}
+
+#[test]
+fn tiff_float_family() {
+    run_family(&families(), "tiff-float");
 }
 
 #[test]
 fn stl_family() {
-    run_family("stl");
+    run_family(&families(), "stl");
 }
 
 #[test]
 fn session_family() {
-    run_family("session");
+    run_family(&families(), "session");
+}
+
+#[test]
+fn colmap_bin_family() {
+    run_family(&families(), "colmap-bin");
+}
+
+#[test]
+fn colmap_text_family() {
+    run_family(&families(), "colmap-text");
+}
+
+#[test]
+fn transforms_family() {
+    run_family(&families(), "transforms");
 }

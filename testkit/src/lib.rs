@@ -1,6 +1,8 @@
 //! Test support shared by the workspace's test suites: where the reference scenes rendered by
 //! Mitsuba 3 are (`shared/fixtures` beside the checkout, or `$RMVP_FIXTURES`).
 
+pub mod mutation;
+
 use std::path::{Path, PathBuf};
 
 /// The fixtures folder: `$RMVP_FIXTURES`, else `shared/fixtures` beside the checkout.
@@ -142,40 +144,86 @@ pub struct Limited {
     pub stdout: String,
     /// Its standard error.
     pub stderr: String,
+    /// The most memory it held at once (its peak resident set), bytes.
+    pub peak_bytes: u64,
 }
 
-/// Run `command` with at most `memory` bytes of data memory (`RLIMIT_DATA`: an allocation past
-/// it aborts the process) and kill it if it runs past `deadline`.
-pub fn run_limited(command: &mut std::process::Command, memory: u64, deadline: std::time::Duration) -> Limited {
-    use std::os::unix::process::CommandExt;
+/// The address space a process run by [`run_limited`] may map (`RLIMIT_AS`, which counts
+/// `mmap` as well as the heap): a reader that asks for more fails to allocate.
+pub const ADDRESS_SPACE_LIMIT: u64 = 2 << 30;
+/// The most memory such a process may hold at once, measured (its peak resident set).
+pub const PEAK_MEMORY_LIMIT: u64 = 1 << 30;
+
+/// Run `command` with at most [`ADDRESS_SPACE_LIMIT`] of address space and two worker threads
+/// (`RAYON_NUM_THREADS`), kill it if it runs past `deadline`, and measure its peak memory.
+pub fn run_limited(command: &mut std::process::Command, deadline: std::time::Duration) -> Limited {
+    use std::os::unix::process::{CommandExt, ExitStatusExt};
     use std::process::Stdio;
-    command.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped());
+    command.stdin(Stdio::null()).stdout(Stdio::piped()).stderr(Stdio::piped()).env("RAYON_NUM_THREADS", "2");
     // SAFETY: setrlimit is async-signal-safe; nothing else runs between fork and exec.
     unsafe {
-        command.pre_exec(move || {
-            let limit = libc::rlimit { rlim_cur: memory, rlim_max: memory };
-            if libc::setrlimit(libc::RLIMIT_DATA, &limit) != 0 {
+        command.pre_exec(|| {
+            let limit = libc::rlimit { rlim_cur: ADDRESS_SPACE_LIMIT, rlim_max: ADDRESS_SPACE_LIMIT };
+            if libc::setrlimit(libc::RLIMIT_AS, &limit) != 0 {
                 return Err(std::io::Error::last_os_error());
             }
             Ok(())
         });
     }
     let started = std::time::Instant::now();
+    #[allow(clippy::zombie_processes, reason = "reaped below by wait4, which reports its peak memory")]
     let mut child = command.spawn().unwrap();
+    let pid = child.id() as libc::pid_t;
     // Both streams drained while the process runs, so that neither can fill up and block it.
     let (out, err) = (child.stdout.take().unwrap(), child.stderr.take().unwrap());
     let stdout = std::thread::spawn(move || std::io::read_to_string(out).unwrap_or_default());
     let stderr = std::thread::spawn(move || std::io::read_to_string(err).unwrap_or_default());
-    let status = loop {
-        if let Some(status) = child.try_wait().unwrap() {
-            break Some(status);
+    // The child is reaped here, with its resource usage: `wait4` reports its peak memory.
+    let reap = |options: libc::c_int| {
+        let (mut status, mut usage) = (0, unsafe { std::mem::zeroed::<libc::rusage>() });
+        // SAFETY: plain out-parameters for a child of this process.
+        let reaped = unsafe { libc::wait4(pid, &mut status, options, &mut usage) };
+        assert!(reaped >= 0, "wait4: {}", std::io::Error::last_os_error());
+        (reaped == pid).then(|| (std::process::ExitStatus::from_raw(status), usage.ru_maxrss as u64 * 1024))
+    };
+    let (status, peak_bytes) = loop {
+        if let Some((status, peak)) = reap(libc::WNOHANG) {
+            break (Some(status), peak);
         }
         if started.elapsed() > deadline {
             child.kill().unwrap();
-            child.wait().unwrap();
-            break None;
+            let (_, peak) = reap(0).expect("the killed child");
+            break (None, peak);
         }
         std::thread::sleep(std::time::Duration::from_millis(20));
     };
-    Limited { status, stdout: stdout.join().unwrap(), stderr: stderr.join().unwrap() }
+    Limited { status, stdout: stdout.join().unwrap(), stderr: stderr.join().unwrap(), peak_bytes }
+}
+
+/// The variable that makes a test binary a child running one test's body.
+const LIMITED_CASE: &str = "RMVP_LIMITED_CASE";
+
+/// Run `body` of the test named `test` in a child process of the test binary, under
+/// [`run_limited`] and a 60 s deadline: the test fails if the body fails, hangs, or holds
+/// [`PEAK_MEMORY_LIMIT`] or more at once. In that child, run `body`. Returns the peak memory in
+/// the parent (0 in the child).
+pub fn limited_case(test: &str, body: impl FnOnce()) -> u64 {
+    if std::env::var(LIMITED_CASE).as_deref() == Ok(test) {
+        body();
+        return 0;
+    }
+    let mut command = std::process::Command::new(std::env::current_exe().unwrap());
+    command.args([test, "--exact", "--nocapture", "--test-threads=1"]).env(LIMITED_CASE, test);
+    let deadline = std::time::Duration::from_secs(60);
+    let run = run_limited(&mut command, deadline);
+    let output = format!("{}\n{}", run.stdout, run.stderr);
+    match run.status {
+        None => panic!("{test}: still ran after {deadline:?}\n{output}"),
+        Some(s) if !s.success() => panic!("{test}: failed ({s})\n{output}"),
+        Some(_) => {}
+    }
+    let peak_mib = run.peak_bytes as f64 / (1 << 20) as f64;
+    eprintln!("{test}: peak {peak_mib:.0} MiB");
+    assert!(run.peak_bytes < PEAK_MEMORY_LIMIT, "{test}: held {peak_mib:.0} MiB at once");
+    run.peak_bytes
 }

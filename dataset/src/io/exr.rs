@@ -26,7 +26,11 @@ pub fn read_exr_channels(path: &Path) -> Result<ExrChannels> {
     let meta = MetaData::read_from_buffered(&mut file, false).map_err(bad)?;
     for header in &meta.headers {
         let size = header.layer_size;
-        input::check_pixels(path, size.width() as u64, size.height() as u64)?;
+        let (width, height) = (size.width() as u64, size.height() as u64);
+        input::check_pixels(path, width, height)?;
+        // Each sample as stored and as `f32`.
+        let per_pixel: u64 = header.channels.list.iter().map(|c| c.sample_type.bytes_per_sample() as u64 + 4).sum();
+        input::check_decoding_bytes(path, width, height, (width * height).saturating_mul(per_pixel))?;
         // Every chunk of the layer needs at least its 8-byte offset in the file.
         if header.chunk_count as u64 > file_bytes / 8 {
             return Err(Error::format(

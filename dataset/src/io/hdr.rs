@@ -33,6 +33,8 @@ pub fn read_hdr(path: &Path) -> Result<Image<f32>> {
     if data < least {
         return Err(bad(format!("declares {w}x{h} pixels, which need at least {least} bytes; it has {data}")));
     }
+    // RGBE bytes and RGB `f32` samples.
+    input::check_decoding_bytes(path, w as u64, h as u64, (w as u64 * h as u64).saturating_mul(16))?;
     let pixels = scanlines(&bytes[start..], w, h).map_err(bad)?;
     Image::from_vec(w, h, 3, pixels).map_err(|e| e.in_file(path))
 }

@@ -54,6 +54,33 @@ pub fn check_pixels(path: &Path, width: u64, height: u64) -> Result<()> {
     Ok(())
 }
 
+/// The memory decoding one image may take, per pixel [`max_pixels`] allows: 768 MiB by default,
+/// enough for a 128-megapixel grey picture or a 40-megapixel picture of 16-bit RGB samples.
+pub const DECODING_BYTES_PER_PIXEL: u64 = 3;
+
+/// The most memory, in bytes, decoding one image may take (its file, its samples as decoded
+/// and as rmvp keeps them).
+pub fn max_decoding_bytes() -> u64 {
+    max_pixels().saturating_mul(DECODING_BYTES_PER_PIXEL)
+}
+
+/// Check the memory decoding a `width x height` image takes (`bytes`, estimated from its
+/// declared size and sample type) against [`max_decoding_bytes`], before anything is allocated.
+pub fn check_decoding_bytes(path: &Path, width: u64, height: u64, bytes: u64) -> Result<()> {
+    let limit = max_decoding_bytes();
+    if bytes > limit {
+        let mib = |b: u64| b.div_ceil(1 << 20);
+        let why = format!(
+            "declares a {width}x{height} image that takes {} MiB to decode, more than the {} MiB one image may \
+             take ({DECODING_BYTES_PER_PIXEL} bytes per pixel `--max-pixels` allows)",
+            mib(bytes),
+            mib(limit)
+        );
+        return Err(Error::format(path, why));
+    }
+    Ok(())
+}
+
 /// What a file system entry is, in words, when it is not a regular file.
 fn not_regular(meta: &Metadata) -> Option<&'static str> {
     let t = meta.file_type();

@@ -21,9 +21,12 @@ use std::path::Path;
 pub const PICTURE_EXTENSIONS: [&str; 7] = ["png", "jpg", "jpeg", "tif", "tiff", "exr", "hdr"];
 
 /// The most pixels a compressed picture may declare per byte of its file: far beyond what
-/// deflate (1032:1 on bytes), LZW or a JPEG of one flat colour reach, so that only a forged
-/// size is refused, before the decoder allocates for it.
+/// deflate (1032:1 on bytes) or LZW reach, so that only a forged size is refused, before the
+/// decoder allocates for it.
 const MAX_PIXELS_PER_BYTE: u64 = 4096;
+/// The same for JPEG: every 8x8 block of its fullest-resolution component takes at least one
+/// bit (a one-bit Huffman code for "no change"), 512 pixels per byte at most.
+const MAX_JPEG_PIXELS_PER_BYTE: u64 = 512;
 
 /// A picture's samples and what they mean.
 #[derive(Clone, Debug, PartialEq)]
@@ -95,27 +98,29 @@ pub fn read_picture(path: &Path) -> Result<Picture> {
         "hdr" => return Ok(Picture { pixels: Pixels::Linear(super::hdr::read_hdr(path)?), camera: None }),
         _ => {}
     }
-    let bytes = input::read_bytes(path)?;
+    let bytes = input::read_bytes_limited(path, input::max_decoding_bytes())?;
     let unreadable = |e: image::ImageError| Error::format(path, format!("not a readable picture: {e}"));
     let mut reader = ImageReader::new(Cursor::new(&bytes)).with_guessed_format().map_err(|e| Error::io(path, e))?;
     if reader.format().is_none() {
         return Err(Error::format(path, "not a picture rmvp reads (PNG, JPEG, TIFF, EXR or HDR)"));
     }
-    let reader_format = reader.format();
+    let is_jpeg = reader.format() == Some(image::ImageFormat::Jpeg);
     let mut limits = Limits::default();
-    limits.max_alloc = Some(input::max_pixels().saturating_mul(16));
+    limits.max_alloc = Some(input::max_decoding_bytes());
     reader.limits(limits);
     let mut decoder = reader.into_decoder().map_err(unreadable)?;
     let (width, height) = decoder.dimensions();
     input::check_pixels(path, width as u64, height as u64)?;
     let pixels = width as u64 * height as u64;
-    if pixels > (bytes.len() as u64).saturating_mul(MAX_PIXELS_PER_BYTE) {
+    let per_byte = if is_jpeg { MAX_JPEG_PIXELS_PER_BYTE } else { MAX_PIXELS_PER_BYTE };
+    if pixels > (bytes.len() as u64).saturating_mul(per_byte) {
         return Err(Error::format(
             path,
             format!("declares a {width}x{height} image that its {} bytes cannot hold", bytes.len()),
         ));
     }
-    if reader_format == Some(image::ImageFormat::Jpeg) && !jpeg_ends(&bytes) {
+    input::check_decoding_bytes(path, width as u64, height as u64, decoding_bytes(&decoder, bytes.len()))?;
+    if is_jpeg && !jpeg_ends(&bytes) {
         return Err(Error::format(
             path,
             "a JPEG without its end (truncated): no end-of-image marker after its last scan",
@@ -124,6 +129,20 @@ pub fn read_picture(path: &Path) -> Result<Picture> {
     let camera = decoder.exif_metadata().ok().flatten().and_then(|exif| camera_from_exif(&exif));
     let image = DynamicImage::from_decoder(decoder).map_err(unreadable)?;
     Ok(Picture { pixels: samples(path, image)?, camera })
+}
+
+/// The memory decoding takes: the file, the decoded samples and, for each kept channel, a
+/// converted sample and the kept one (an 8-bit sample stays 8 bits, others become `f32`).
+fn decoding_bytes(decoder: &impl ImageDecoder, file_bytes: usize) -> u64 {
+    let (width, height) = decoder.dimensions();
+    let colour = decoder.color_type();
+    let sample = (colour.bytes_per_pixel() / colour.channel_count()) as u64;
+    let kept_channels = if colour.has_color() { 3 } else { 1 };
+    let kept_sample = if sample == 1 { 1 } else { 4 };
+    let per_pixel = kept_channels * (sample + kept_sample);
+    (file_bytes as u64)
+        .saturating_add(decoder.total_bytes())
+        .saturating_add((width as u64 * height as u64).saturating_mul(per_pixel))
 }
 
 /// Whether a JPEG's last scan (`FF DA`) is followed by its end-of-image marker (`FF D9`): the

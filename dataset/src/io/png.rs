@@ -40,6 +40,9 @@ pub fn read_png(path: &Path) -> Result<PngImage> {
             ),
         ));
     }
+    // A 16-bit image is decoded into bytes, then made samples.
+    let decoding = if reader.info().bit_depth == BitDepth::Sixteen { 2 * size as u64 } else { size as u64 };
+    input::check_decoding_bytes(path, width, height, decoding)?;
     let mut buf = vec![0u8; size];
     let info = reader.next_frame(&mut buf).map_err(bad)?;
     buf.truncate(info.buffer_size());

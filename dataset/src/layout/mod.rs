@@ -16,7 +16,18 @@ pub mod rmvp;
 pub mod rmvp3d;
 
 use crate::{Error, Result, Scene};
+use std::fmt::Display;
 use std::path::Path;
+
+/// Refuse an image read from `path` whose size (`got`, width and height) is not `expected`, the
+/// size of `reference` (the file or record that sets the view's size), naming both.
+fn check_size(path: &Path, got: (usize, usize), reference: impl Display, expected: (usize, usize)) -> Result<()> {
+    if got != expected {
+        let why = format!("is {}x{}, but {reference} is {}x{}", got.0, got.1, expected.0, expected.1);
+        return Err(Error::format(path, why));
+    }
+    Ok(())
+}
 
 /// A scene folder layout.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

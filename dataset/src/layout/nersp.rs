@@ -16,7 +16,7 @@
 //! gt/mesh.ply gt/env.exr       ground-truth mesh and environment map
 //! ```
 
-use super::{array_from_image, image_from_array};
+use super::{array_from_image, check_size, image_from_array};
 use crate::camera::{matrix_from_rows, matrix_rows};
 use crate::io::{exr, input, json, npy, png, write_bytes_atomically};
 use crate::polarization::{aop_from_u16, aop_to_u16, POLARIZER_ANGLES_DEG};
@@ -226,17 +226,33 @@ fn read_train_view(
     let aop_path = train_file(dir, "input_azimuth_maps", i, "png");
     let (aop, alpha) =
         if aop_path.exists() { read_azimuth_map(&aop_path).map(|(a, m)| (Some(a), m))? } else { (None, None) };
+    // Every file of the view has the size of its S0.
+    let s0_path = train_file(dir, "s0", i, "npy");
+    let sized = |path: &Path, size: (usize, usize)| check_size(path, size, s0_path.display(), (w, h));
+    if let Some(aop) = &aop {
+        sized(&aop_path, aop.size())?;
+    }
     view.aop = aop;
-    view.mask = Some(training_mask(&train_file(dir, "mask", i, "png"), &aop_path, alpha)?);
+    let mask_path = train_file(dir, "mask", i, "png");
+    let mask = training_mask(&mask_path, &aop_path, alpha)?;
+    sized(if mask_path.exists() { &mask_path } else { &aop_path }, mask.size())?;
+    view.mask = Some(mask);
     let preview_path = train_file(dir, "image", i, "png");
     if preview_path.is_file() {
-        view.preview = Some(png::read_png_u8(&preview_path)?);
+        let preview = png::read_png_u8(&preview_path)?;
+        sized(&preview_path, preview.size())?;
+        view.preview = Some(preview);
     }
     let polarizer_path = |deg: u32| dir.join("polarized").join(format!("{i:04}_{deg:03}.png"));
     if polarizer_path(0).is_file() {
-        let images = POLARIZER_ANGLES_DEG.map(|deg| png::read_png_u16(&polarizer_path(deg)));
-        let [a, b, c, d] = images;
-        view.polarized = Some(PolarizerImages { scale: png_scale, images: [a?, b?, c?, d?] });
+        let mut images = Vec::with_capacity(4);
+        for deg in POLARIZER_ANGLES_DEG {
+            let image = png::read_png_u16(&polarizer_path(deg))?;
+            sized(&polarizer_path(deg), image.size())?;
+            images.push(image);
+        }
+        let images = images.try_into().expect("four polarizer angles");
+        view.polarized = Some(PolarizerImages { scale: png_scale, images });
     }
     Ok(view)
 }
@@ -287,9 +303,17 @@ fn read_azimuth_map(path: &Path) -> Result<(Image<f32>, Option<Image<u8>>)> {
 
 /// The `gt/` images of a view; `index` is its position (a training view's file number).
 fn read_ground_truth_images(dir: &Path, index: usize, view: &mut View) -> Result<()> {
+    // The file that sets the view's size: its S0 (training views) or its camera's record.
+    let size = (view.camera.width as usize, view.camera.height as usize);
+    let reference = match view.split {
+        Split::Train => train_file(dir, "s0", index, "npy").display().to_string(),
+        Split::Eval => format!("camera {} of {}", view.name, dir.join(GT_CAMERAS).display()),
+    };
+    let sized = |path: &Path, got: (usize, usize)| check_size(path, got, &reference, size);
     let mask_path = dir.join("gt/mask").join(format!("{}.png", view.name));
     if mask_path.is_file() {
         let mask = read_mask(&mask_path)?;
+        sized(&mask_path, mask.size())?;
         match &view.mask {
             Some(existing) if *existing != mask => {
                 let train_mask = train_file(dir, "mask", index, "png");
@@ -304,11 +328,15 @@ fn read_ground_truth_images(dir: &Path, index: usize, view: &mut View) -> Result
     }
     let normal_path = dir.join("gt/normal").join(format!("{}.exr", view.name));
     if normal_path.is_file() {
-        view.normals = Some(exr::read_exr(&normal_path, &NORMAL_CHANNELS)?);
+        let normals = exr::read_exr(&normal_path, &NORMAL_CHANNELS)?;
+        sized(&normal_path, normals.size())?;
+        view.normals = Some(normals);
     }
     let depth_path = dir.join("gt/depth").join(format!("{}.exr", view.name));
     if depth_path.is_file() {
-        view.depth = Some(exr::read_exr(&depth_path, &["Z"])?);
+        let depth = exr::read_exr(&depth_path, &["Z"])?;
+        sized(&depth_path, depth.size())?;
+        view.depth = Some(depth);
     }
     Ok(())
 }

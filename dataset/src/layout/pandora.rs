@@ -14,6 +14,7 @@
 //! `01`, `02`, ...; RGBE keeps about 1 % relative precision, and a Stokes vector whose `S0 + S1`
 //! or `S0 + S2` is negative (beyond full polarization, from noise) is clamped to 0 there.
 
+use super::check_size;
 use super::nersp::{cameras_by_keys, read_camera_arrays, write_cameras};
 use crate::io::hdr::{read_hdr, write_hdr};
 use crate::io::png;
@@ -62,15 +63,11 @@ pub fn read(dir: &Path) -> Result<Scene> {
         .zip(&world_mats)
         .map(|(stem, world_mat)| {
             crate::io::input::file_name(stem).map_err(|why| Error::format(dir.join(STOKES_FOLDER), why))?;
-            let hdr = |suffix: &str| read_hdr(&dir.join(STOKES_FOLDER).join(format!("{stem}{suffix}")));
+            let stokes_file = |suffix: &str| dir.join(STOKES_FOLDER).join(format!("{stem}{suffix}"));
+            let hdr = |suffix: &str| read_hdr(&stokes_file(suffix));
             let (s0, s0p1, s0p2) = (hdr(S0_SUFFIX)?, hdr("_s0p1.hdr")?, hdr("_s0p2.hdr")?);
             let unshift = |shifted: &Image<f32>, name: &str| -> Result<Image<f32>> {
-                if shifted.size() != s0.size() {
-                    return Err(Error::format(
-                        dir.join(STOKES_FOLDER).join(format!("{stem}{name}")),
-                        format!("is {:?}, its S0 {:?}", shifted.size(), s0.size()),
-                    ));
-                }
+                check_size(&stokes_file(name), shifted.size(), stokes_file(S0_SUFFIX).display(), s0.size())?;
                 let data = shifted.data().iter().zip(s0.data()).map(|(a, b)| a - b).collect();
                 Image::from_vec(s0.width(), s0.height(), 3, data)
             };
@@ -83,7 +80,9 @@ pub fn read(dir: &Path) -> Result<Scene> {
             view.stokes = Some(stokes);
             let corrected = dir.join("mask_corrections").join(format!("{stem}.png"));
             let mask = if corrected.exists() { corrected } else { dir.join("mask").join(format!("{stem}.png")) };
-            view.mask = Some(read_mask(&mask)?);
+            let mask_image = read_mask(&mask)?;
+            check_size(&mask, mask_image.size(), stokes_file(S0_SUFFIX).display(), (w, h))?;
+            view.mask = Some(mask_image);
             Ok(view)
         })
         .collect::<Result<Vec<View>>>()?;

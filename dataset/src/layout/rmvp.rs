@@ -12,6 +12,7 @@
 //! mesh.ply env.exr                 ground-truth mesh and environment map
 //! ```
 
+use super::check_size;
 use crate::camera::CameraRecord;
 use crate::io::{exr, input, json, png, write_bytes_atomically};
 use crate::polarization::POLARIZER_ANGLES_DEG;
@@ -134,44 +135,72 @@ pub fn read(dir: &Path) -> Result<Scene> {
     let views = manifest
         .views
         .par_iter()
-        .map(|record| read_view(record, &file).map_err(|e| e.in_file(&path)))
+        .map(|record| read_view(record, &path, &file).map_err(|e| e.in_file(&path)))
         .collect::<Result<_>>()?;
     let mesh = manifest.mesh.as_ref().map(|f| Mesh::read(&file(f)?)).transpose()?;
     let env_map = manifest.env_map.as_ref().map(|f| exr::read_exr(&file(f)?, &["R", "G", "B"])).transpose()?;
     Ok(Scene { views, normalization: from_rows4(&manifest.normalization), mesh, env_map, metadata: manifest.metadata })
 }
 
-/// One view of the manifest; `file` resolves a path of the manifest inside the scene folder.
-fn read_view(record: &SceneViewRecord, file: &(impl Fn(&String) -> Result<std::path::PathBuf> + Sync)) -> Result<View> {
+/// One view of the manifest (`manifest`); `file` resolves a path of the manifest inside the
+/// scene folder. Every image has the size of the view's camera.
+fn read_view(
+    record: &SceneViewRecord,
+    manifest: &Path,
+    file: &(impl Fn(&String) -> Result<std::path::PathBuf> + Sync),
+) -> Result<View> {
     let camera = Camera::try_from(&record.camera).map_err(|e| Error::invalid(format!("view {}: {e}", record.name)))?;
+    let size = (camera.width as usize, camera.height as usize);
+    let reference = format!("the camera of view {} in {}", record.name, manifest.display());
+    let sized = |name: &String, read: &dyn Fn(&Path) -> Result<Image<f32>>| -> Result<Image<f32>> {
+        let path = file(name)?;
+        let image = read(&path)?;
+        check_size(&path, image.size(), &reference, size)?;
+        Ok(image)
+    };
+    let sized_u8 = |name: &String| -> Result<Image<u8>> {
+        let path = file(name)?;
+        let image = png::read_png_u8(&path)?;
+        check_size(&path, image.size(), &reference, size)?;
+        Ok(image)
+    };
     let mut view = View::new(record.name.clone(), record.split, camera);
     view.projection = record.projection.as_ref().map(from_rows4);
     let f = &record.files;
     if let Some(name) = &f.stokes {
-        view.stokes = Some(read_stokes(&file(name)?)?);
+        let path = file(name)?;
+        let stokes = read_stokes(&path)?;
+        check_size(&path, stokes.s0.size(), &reference, size)?;
+        view.stokes = Some(stokes);
     }
     if let Some(name) = &f.mask {
-        view.mask = Some(png::read_png_u8(&file(name)?)?);
+        view.mask = Some(sized_u8(name)?);
     }
     if let Some(name) = &f.aop {
-        view.aop = Some(exr::read_exr(&file(name)?, &["AoP"])?);
+        view.aop = Some(sized(name, &|p| exr::read_exr(p, &["AoP"]))?);
     }
     if let Some(name) = &f.dop {
-        view.dop = Some(exr::read_exr(&file(name)?, &["DoP"])?);
+        view.dop = Some(sized(name, &|p| exr::read_exr(p, &["DoP"]))?);
     }
     if let Some(name) = &f.normal {
-        view.normals = Some(exr::read_exr(&file(name)?, &["N.X", "N.Y", "N.Z"])?);
+        view.normals = Some(sized(name, &|p| exr::read_exr(p, &["N.X", "N.Y", "N.Z"]))?);
     }
     if let Some(name) = &f.depth {
-        view.depth = Some(exr::read_exr(&file(name)?, &["Z"])?);
+        view.depth = Some(sized(name, &|p| exr::read_exr(p, &["Z"]))?);
     }
     if let Some(files) = &f.polarizers {
-        let [a, b, c, d] = files.each_ref().map(|name| file(name).and_then(|p| png::read_png_u16(&p)));
+        let mut images = Vec::with_capacity(4);
+        for name in files {
+            let path = file(name)?;
+            let image = png::read_png_u16(&path)?;
+            check_size(&path, image.size(), &reference, size)?;
+            images.push(image);
+        }
         let scale = record.polarizer_scale.unwrap_or(1.0);
-        view.polarized = Some(PolarizerImages { scale, images: [a?, b?, c?, d?] });
+        view.polarized = Some(PolarizerImages { scale, images: images.try_into().expect("four polarizer angles") });
     }
     if let Some(name) = &f.preview {
-        view.preview = Some(png::read_png_u8(&file(name)?)?);
+        view.preview = Some(sized_u8(name)?);
     }
     Ok(view)
 }

@@ -15,6 +15,7 @@
 //! back as `000`, `001`, ... and every view is a training view (the release's split is its
 //! users' choice). We write 0-based keys and `mask/`.
 
+use super::check_size;
 use super::nersp::{cameras_by_keys, read_camera_arrays, write_cameras};
 use crate::io::{npy, png};
 use crate::layout::{array_from_image, image_from_array};
@@ -129,10 +130,14 @@ pub fn read(dir: &Path) -> Result<Scene> {
             let mask = masks.iter().find(|m| m.exists()).ok_or_else(|| {
                 Error::format(&masks[0], format!("no mask for {} (looked in mask/ and masks/)", path.display()))
             })?;
-            view.mask = Some(png::read_png_u8(mask)?.channel(0));
+            let mask_image = png::read_png_u8(mask)?.channel(0);
+            check_size(mask, mask_image.size(), path.display(), (w, h))?;
+            view.mask = Some(mask_image);
             let preview = dir.join("image").join(format!("{stem}.png"));
             if preview.is_file() {
-                view.preview = Some(png::read_png_u8(&preview)?);
+                let image = png::read_png_u8(&preview)?;
+                check_size(&preview, image.size(), path.display(), (w, h))?;
+                view.preview = Some(image);
             }
             Ok(view)
         })
