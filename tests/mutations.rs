@@ -78,3 +78,18 @@ fn plan_family() {
 fn checkpoint_family() {
     run_family(&families(), "checkpoint");
 }
+
+#[test]
+fn a_sparse_checkpoint_of_gigabytes_is_refused_from_its_header() {
+    let peak = rmvp_testkit::limited_case("a_sparse_checkpoint_of_gigabytes_is_refused_from_its_header", || {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("checkpoint.bin");
+        std::fs::write(&path, checkpoint_seed(dir.path())).unwrap();
+        // A hole after the parameters: 1.5 GiB on disk, none of it stored.
+        std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(3 << 29).unwrap();
+        let (set, config) = small_run();
+        let err = Trainer::load_checkpoint(&path, set.clone(), config, None).err().expect("refused").to_string();
+        assert!(err.contains("checkpoint.bin") && err.contains("too long:"), "{err}");
+    });
+    assert!(peak < 256 << 20, "peak {} MiB", peak >> 20);
+}

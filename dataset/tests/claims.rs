@@ -224,3 +224,19 @@ fn a_pandora_mask_of_another_size_names_both_files() {
     let (w, h) = scene.views[1].stokes.as_ref().unwrap().s0.size();
     assert_eq!(err, format!("{}: is 64x64, but {} is {w}x{h}", mask.display(), s0.display()));
 }
+
+#[test]
+fn a_sparse_file_of_gigabytes_behind_a_valid_head_is_refused_unread() {
+    let peak = rmvp_testkit::limited_case("a_sparse_file_of_gigabytes_behind_a_valid_head_is_refused_unread", || {
+        let dir = tempfile::tempdir().unwrap();
+        let image = rmvp_dataset::Image::from_vec(16, 16, 3, vec![0.5f32; 16 * 16 * 3]).unwrap();
+        let path = dir.path().join("panorama.hdr");
+        rmvp_dataset::io::hdr::write_hdr(&path, &image).unwrap();
+        assert_eq!(rmvp_dataset::io::hdr::read_hdr(&path).unwrap().size(), (16, 16));
+        // The same head and scanlines, then a hole: 1.5 GiB on disk, none of it stored.
+        std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(3 << 29).unwrap();
+        let err = rmvp_dataset::io::hdr::read_hdr(&path).unwrap_err().to_string();
+        assert!(err.contains("panorama.hdr: is 1610612736 bytes, more than the"), "{err}");
+    });
+    assert!(peak < 64 * MIB, "peak {} MiB", peak / MIB);
+}

@@ -401,9 +401,8 @@ impl Trainer {
         config: &TrainConfig,
         options: Option<&ReconOptions>,
     ) -> Result<Self> {
-        let bytes = rmvp_dataset::io::input::read_bytes(path)?;
         let bad = |m: &str| Error::BadCheckpoint { path: path.to_path_buf(), problem: m.to_string() };
-        let (header, len) = checkpoint_header(path, &bytes)?;
+        let (header, len, file_len) = checkpoint_header(path)?;
         let changed = match (&header.options, options) {
             (Some(recorded), Some(now)) => recorded.training_differences(now),
             _ => Vec::new(),
@@ -412,13 +411,12 @@ impl Trainer {
             let changed = if changed.is_empty() { "the training configuration".into() } else { changed.join(", ") };
             return Err(Error::CheckpointSettings { path: path.to_path_buf(), changed });
         }
-        let body = &bytes[16 + len..];
-        if body.len() as u64 != 12 * header.parameters as u64 {
-            return Err(bad(&format!(
-                "truncated: {} bytes of parameters and optimiser state, expected {}",
-                body.len(),
-                12 * header.parameters as u64
-            )));
+        // The file's size against its header's count before anything is read or built.
+        let body = file_len - 16 - len as u64;
+        let expected = 12u64.saturating_mul(header.parameters as u64);
+        if body != expected {
+            let state = if body < expected { "truncated" } else { "too long" };
+            return Err(bad(&format!("{state}: {body} bytes of parameters and optimiser state, expected {expected}")));
         }
         let mut trainer = Self::new(config.clone(), set);
         trainer.options = header.options;
@@ -426,8 +424,16 @@ impl Trainer {
         if header.parameters != n {
             return Err(bad(&format!("{} parameters, the model has {n}", header.parameters)));
         }
-        let floats: Vec<f32> =
-            body.chunks_exact(4).map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes"))).collect();
+        let bytes = rmvp_dataset::io::input::read_bytes_limited(path, file_len)?;
+        let floats: Vec<f32> = bytes
+            .get(16 + len..)
+            .unwrap_or_default()
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
+            .collect();
+        if floats.len() != 3 * n {
+            return Err(bad("changed while read"));
+        }
         trainer.params = floats[..n].to_vec();
         trainer.adam.m = floats[n..2 * n].to_vec();
         trainer.adam.v = floats[2 * n..].to_vec();
@@ -453,24 +459,38 @@ const CHECKPOINT_FORMAT: &str = "rmvp-recon-checkpoint-2";
 
 /// The options a checkpoint's run was started with (`None` for a run started without them).
 pub fn checkpoint_options(path: &Path) -> Result<Option<ReconOptions>> {
-    let bytes = rmvp_dataset::io::input::read_bytes(path)?;
-    Ok(checkpoint_header(path, &bytes)?.0.options)
+    Ok(checkpoint_header(path)?.0.options)
 }
 
-/// A checkpoint's header and its length in bytes.
-fn checkpoint_header(path: &Path, bytes: &[u8]) -> Result<(CheckpointHeader, usize)> {
+/// The most bytes a checkpoint's header (JSON: the configuration and options) may have.
+const MAX_CHECKPOINT_HEADER_BYTES: u64 = 1 << 20;
+
+/// A checkpoint's header, its length in bytes and the file's length: only the header is read.
+fn checkpoint_header(path: &Path) -> Result<(CheckpointHeader, usize, u64)> {
+    use std::io::Read;
     let bad = |m: &str| Error::BadCheckpoint { path: path.to_path_buf(), problem: m.to_string() };
-    if bytes.len() < 16 || &bytes[..8] != CHECKPOINT_MAGIC {
+    let file = rmvp_dataset::io::input::open_regular(path)?;
+    let file_len = file.metadata().map_err(|e| rmvp_dataset::Error::io(path, e))?.len();
+    let mut head = Vec::new();
+    let mut reader = file.take(16 + MAX_CHECKPOINT_HEADER_BYTES);
+    reader.by_ref().take(16).read_to_end(&mut head).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+    if head.len() < 16 || &head[..8] != CHECKPOINT_MAGIC {
         return Err(bad("not an rmvp checkpoint"));
     }
-    let len = u64::from_le_bytes(bytes[8..16].try_into().expect("8 bytes")) as usize;
-    let header: CheckpointHeader =
-        serde_json::from_slice(bytes.get(16..16usize.saturating_add(len)).ok_or_else(|| bad("truncated header"))?)
-            .map_err(|e| bad(&format!("header: {e}")))?;
+    let len = u64::from_le_bytes(head[8..16].try_into().expect("8 bytes"));
+    if len > MAX_CHECKPOINT_HEADER_BYTES || 16 + len > file_len {
+        return Err(bad("truncated header"));
+    }
+    let mut text = Vec::with_capacity(len as usize);
+    reader.take(len).read_to_end(&mut text).map_err(|e| rmvp_dataset::Error::io(path, e))?;
+    if text.len() as u64 != len {
+        return Err(bad("truncated header"));
+    }
+    let header: CheckpointHeader = serde_json::from_slice(&text).map_err(|e| bad(&format!("header: {e}")))?;
     if header.format != CHECKPOINT_FORMAT {
         return Err(bad(&format!("format {}, this version reads {CHECKPOINT_FORMAT}", header.format)));
     }
-    Ok((header, len))
+    Ok((header, len as usize, file_len))
 }
 
 #[derive(Serialize, Deserialize)]

@@ -19,23 +19,25 @@ use zune_hdr::HdrEncoder;
 /// Longest header read (Radiance headers are a few lines).
 const MAX_HEADER_BYTES: usize = 64 << 10;
 
-/// Read a Radiance HDR file as a 3-channel linear image. Its declared size is checked against
-/// [`input::max_pixels`] and against what its bytes can hold ([`least_data_bytes`]) before the
-/// pixels are allocated.
+/// Read a Radiance HDR file as a 3-channel linear image. Its header is read first: the declared
+/// size is checked against [`input::max_pixels`], against what its bytes can hold
+/// ([`least_data_bytes`]) and against the decoding memory before the pixels are allocated, and
+/// a file longer than its scanlines can take ([`most_data_bytes`]) is refused unread.
 pub fn read_hdr(path: &Path) -> Result<Image<f32>> {
-    let limit = input::max_pixels().saturating_mul(4).saturating_add(MAX_HEADER_BYTES as u64);
-    let bytes = input::read_bytes_limited(path, limit)?;
     let bad = |what: String| Error::format(path, format!("not a readable Radiance HDR file: {what}"));
-    let (w, h, start) = header(&bytes).map_err(bad)?;
+    let (head, file_len) = input::read_head(path, MAX_HEADER_BYTES as u64)?;
+    let (w, h, start) = header(&head).map_err(bad)?;
     input::check_pixels(path, w as u64, h as u64)?;
     let least = least_data_bytes(w, h);
-    let data = (bytes.len() - start) as u64;
+    let data = file_len.saturating_sub(start as u64);
     if data < least {
         return Err(bad(format!("declares {w}x{h} pixels, which need at least {least} bytes; it has {data}")));
     }
     // RGBE bytes and RGB `f32` samples.
     input::check_decoding_bytes(path, w as u64, h as u64, (w as u64 * h as u64).saturating_mul(16))?;
-    let pixels = scanlines(&bytes[start..], w, h).map_err(bad)?;
+    let bytes = input::read_bytes_limited(path, start as u64 + most_data_bytes(w, h))?;
+    let data = bytes.get(start..).ok_or_else(|| bad("it changed while read".into()))?;
+    let pixels = scanlines(data, w, h).map_err(bad)?;
     Image::from_vec(w, h, 3, pixels).map_err(|e| e.in_file(path))
 }
 
@@ -86,6 +88,14 @@ const MAX_PIXELS_PER_BYTE: u64 = 64;
 /// pixel or run-length marker), and no more than [`MAX_PIXELS_PER_BYTE`] pixels a byte.
 fn least_data_bytes(w: usize, h: usize) -> u64 {
     (4 * h as u64).max((w as u64 * h as u64).div_ceil(MAX_PIXELS_PER_BYTE))
+}
+
+/// The most bytes `h` scanlines of `w` pixels take: each a 4-byte marker and, per channel, its
+/// bytes and a count byte for every 128 of them (run-length scanlines of noise); flat
+/// scanlines take less.
+fn most_data_bytes(w: usize, h: usize) -> u64 {
+    let (w, h) = (w as u64, h as u64);
+    h * (4 + 4 * (w + w.div_ceil(128)))
 }
 
 /// Decode `h` scanlines of `w` RGBE pixels to linear RGB.

@@ -155,6 +155,16 @@ pub fn read_bytes_limited(path: &Path, limit: u64) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// The first `limit` bytes of a regular file (fewer when it is shorter) and the file's length:
+/// a header read before the rest is sized from it.
+pub fn read_head(path: &Path, limit: u64) -> Result<(Vec<u8>, u64)> {
+    let file = open_regular(path)?;
+    let size = file.metadata().map_err(|e| Error::io(path, e))?.len();
+    let mut head = Vec::new();
+    file.take(limit).read_to_end(&mut head).map_err(|e| Error::io(path, e))?;
+    Ok((head, size))
+}
+
 /// Read a whole regular file (mesh, raw frame, panorama): its size on disk bounds what is
 /// allocated.
 pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
