@@ -43,7 +43,7 @@ fn checkpoint_seed(dir: &Path) -> Vec<u8> {
     let mut trainer = Trainer::new(config.clone(), set.clone());
     trainer.step();
     let path = dir.join("seed.bin");
-    trainer.save_checkpoint(&path).unwrap();
+    rmvp_recon::checkpoint::save(&trainer, None, &path).unwrap();
     std::fs::read(path).unwrap()
 }
 
@@ -62,7 +62,7 @@ fn families() -> Vec<Family> {
             seed: checkpoint_seed,
             read: |p| {
                 let (set, config) = small_run();
-                outcome(Trainer::load_checkpoint(p, set.clone(), config, None))
+                outcome(rmvp_recon::checkpoint::load(p, set.clone(), config, None))
             },
             fixup: no_fixup,
         },
@@ -88,7 +88,7 @@ fn a_sparse_checkpoint_of_gigabytes_is_refused_from_its_header() {
         // A hole after the parameters: 1.5 GiB on disk, none of it stored.
         std::fs::OpenOptions::new().write(true).open(&path).unwrap().set_len(3 << 29).unwrap();
         let (set, config) = small_run();
-        let err = Trainer::load_checkpoint(&path, set.clone(), config, None).err().expect("refused").to_string();
+        let err = rmvp_recon::checkpoint::load(&path, set.clone(), config, None).err().expect("refused").to_string();
         assert!(err.contains("checkpoint.bin") && err.contains("too long:"), "{err}");
     });
     assert!(peak < 256 << 20, "peak {} MiB", peak >> 20);

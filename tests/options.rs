@@ -5,9 +5,9 @@
 
 use clap::Parser;
 use rmvp_pipeline::batch::plan::BatchPlan;
+use rmvp_recon::checkpoint::recorded_options;
 use rmvp_recon::options::{ReconOptions, RunControl};
 use rmvp_recon::reconstruct::{reconstruct, CHECKPOINT};
-use rmvp_recon::train::checkpoint_options;
 use std::ops::ControlFlow;
 
 mod common;
@@ -104,7 +104,7 @@ fn every_option_has_one_name_on_the_command_line_in_plans_in_the_bench_and_in_th
         }
         let trained = reconstruct(&data, &out, &options, control, |_, _| ControlFlow::Continue(()));
         trained.unwrap_or_else(|e| panic!("{field}: {e}"));
-        assert_eq!(checkpoint_options(&out.join(CHECKPOINT)).unwrap(), Some(options), "{field}");
+        assert_eq!(recorded_options(&out.join(CHECKPOINT)).unwrap(), Some(options), "{field}");
     }
 }
 

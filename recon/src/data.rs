@@ -1,7 +1,7 @@
 //! Training data from a scene: per-view targets (Stokes, mask, AoP) and camera rays expressed in
 //! the reconstruction's unit sphere (the scene's `scale_mat` maps it to the world).
 
-use crate::volume::Ray;
+use crate::ray::Ray;
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Matrix4, Point3, Vector3};
 use rmvp_dataset::{Camera, Scene, Split};

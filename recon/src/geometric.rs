@@ -9,11 +9,11 @@
 //! polarizations nearly cancel, the AoP of a real (microfacet) surface strays from both planes.
 
 use crate::data::{TrainView, TrainingSet};
+use crate::engine::vector::{cross, dot};
 use crate::model::{Model, ShadingInput};
-use crate::pbrdf::{cross, dot};
+use crate::ray::unit_sphere_span;
 use crate::samples::FieldSamples;
 use crate::trace::{sphere_trace, TraceLimits, TraceRay};
-use crate::volume::unit_sphere_span;
 use rmvp_dataset::polarization;
 
 /// The two tangent directions one view gives at a surface point.

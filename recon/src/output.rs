@@ -14,9 +14,10 @@
 
 use crate::data::Frame;
 use crate::model::{Model, STOKES};
+use crate::ray::Ray;
 use crate::trace::{sphere_trace, TraceLimits, TraceRay};
 use crate::train::Trainer;
-use crate::volume::{shade_points, Ray};
+use crate::volume::shade_points;
 use rayon::prelude::*;
 use rmvp_dataset::{Camera, Image, Mesh, Stokes};
 use rmvp_render::bvh::Bvh;

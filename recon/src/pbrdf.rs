@@ -6,6 +6,8 @@
 //! `rho_d = (Rs - Rp) / (2 - Rs - Rp)` (transmitted light, AoP = normal azimuth) and
 //! `rho_s = (Rs - Rp) / (Rs + Rp)` (reflected light, AoP rotated by 90 degrees).
 
+use crate::engine::vector::dot;
+
 /// Refractive index of the object (NeRSP: 1.5).
 pub const ETA: f32 = 1.5;
 /// Smallest `n . v` used in the Fresnel terms (grazing and back-facing samples).
@@ -73,16 +75,6 @@ pub fn double_azimuth(n: [f32; 3], fx: [f32; 3], fy: [f32; 3]) -> ((f32, f32), (
     let dc = [0, 1, 2].map(|k| dc_da * fx[k] + dc_db * fy[k]);
     let ds = [0, 1, 2].map(|k| ds_da * fx[k] + ds_db * fy[k]);
     ((c2, s2), (dc, ds))
-}
-
-/// Dot product of 3-vectors.
-pub fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// Cross product of 3-vectors.
-pub fn cross(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
 #[cfg(test)]

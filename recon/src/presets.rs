@@ -4,10 +4,10 @@
 //!
 //! [`ReconOptions`]: crate::options::ReconOptions
 
+use crate::config::{LossWeights, TrainConfig};
 use crate::engine::AdamConfig;
 use crate::losses::Term;
 use crate::model::{neus_initial_radius, ModelConfig};
-use crate::train::{LossWeights, TrainConfig};
 use crate::volume::Sampling;
 use serde::{Deserialize, Serialize};
 
@@ -64,7 +64,6 @@ pub const BACKGROUND_SHARE: f32 = 0.25;
 pub fn model(preset: Preset) -> ModelConfig {
     match preset {
         Preset::Paper => ModelConfig {
-            preset,
             features: 256,
             sdf_hidden: 256,
             sdf_depth: 8,
@@ -79,7 +78,6 @@ pub fn model(preset: Preset) -> ModelConfig {
             initial_radius: neus_initial_radius(),
         },
         Preset::Fast | Preset::Dense => ModelConfig {
-            preset,
             features: 15,
             sdf_hidden: 64,
             sdf_depth: 2,

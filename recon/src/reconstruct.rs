@@ -2,6 +2,7 @@
 //! (resumable), then the mesh, normal maps, re-rendered Stokes, a comparison picture and the
 //! residuals of the model against its input.
 
+use crate::checkpoint;
 use crate::data::TrainingSet;
 use crate::extract::{extract_mesh, CpuSdf, Device};
 use crate::options::{ReconOptions, RunControl};
@@ -55,7 +56,7 @@ pub fn reconstruct(
     let checkpoint = out.join(CHECKPOINT);
     let log_path = out.join(LOG);
     let mut trainer = if control.resume && checkpoint.exists() {
-        Trainer::load_checkpoint(&checkpoint, set, &config, Some(options))?
+        checkpoint::load(&checkpoint, set, &config, Some(options))?
     } else {
         let trainer = Trainer::new(config, set);
         if let Some(least) = trainer.model.start_without_surface(&trainer.params) {
@@ -69,7 +70,6 @@ pub fn reconstruct(
         trainer
     };
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    trainer.options = Some(options.clone());
     // The log keeps exactly the iterations the checkpoint has seen.
     let kept: String = match rmvp_dataset::io::input::read_text(&log_path) {
         Ok(text) if trainer.iteration > 0 => {
@@ -83,7 +83,7 @@ pub fn reconstruct(
     while trainer.iteration < trainer.config.iterations {
         if budget == 0 {
             log.sync_data().map_err(|e| Error::io(&log_path, e))?;
-            trainer.save_checkpoint(&checkpoint)?;
+            checkpoint::save(&trainer, Some(options), &checkpoint)?;
             return Ok(trainer);
         }
         budget -= 1;
@@ -93,11 +93,11 @@ pub fn reconstruct(
         if trainer.iteration.is_multiple_of(options.checkpoint_every) || trainer.iteration == trainer.config.iterations
         {
             log.sync_data().map_err(|e| Error::io(&log_path, e))?;
-            trainer.save_checkpoint(&checkpoint)?;
+            checkpoint::save(&trainer, Some(options), &checkpoint)?;
         }
         if on_step(&report, &trainer).is_break() && trainer.iteration < trainer.config.iterations {
             log.sync_data().map_err(|e| Error::io(&log_path, e))?;
-            trainer.save_checkpoint(&checkpoint)?;
+            checkpoint::save(&trainer, Some(options), &checkpoint)?;
             return Ok(trainer);
         }
     }

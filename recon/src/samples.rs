@@ -3,8 +3,8 @@
 //! evaluations per point, so that no second-order gradient is ever needed; and the backward
 //! pass from gradients on each of those quantities to the parameters.
 
+use crate::engine::vector::dot;
 use crate::model::{FieldCache, GridGradient, Model};
-use crate::pbrdf::dot;
 
 /// The six finite-difference offsets, in the order the field evaluates them.
 const OFFSETS: [(usize, f32); 6] = [(0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0)];

@@ -3,8 +3,8 @@
 
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::data::TrainingSet;
+use rmvp_recon::engine::vector::dot;
 use rmvp_recon::geometric::{tangent_loss, Tangents};
-use rmvp_recon::pbrdf::dot;
 
 /// Median over polarized object pixels of view 0 of `min(|n.t|, |n.e|)` with the AoP mapped by `f`.
 fn median_residual(f: impl Fn(f32) -> f32) -> f32 {

@@ -5,11 +5,13 @@
 
 use rmvp_dataset::rng::Rng;
 use rmvp_recon::engine::encoding::{ide, IDE_WIDTH};
+use rmvp_recon::engine::vector::cross;
 use rmvp_recon::engine::{Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
 use rmvp_recon::model::{Model, ShadingCache, ShadingInput, STOKES};
-use rmvp_recon::pbrdf::{cross, degrees, double_azimuth};
+use rmvp_recon::pbrdf::{degrees, double_azimuth};
 use rmvp_recon::presets::{self, Preset};
-use rmvp_recon::volume::{sample_depths, Forward, Ray, RayGrad, Sampling};
+use rmvp_recon::ray::Ray;
+use rmvp_recon::volume::{sample_depths, Forward, RayGrad, Sampling};
 
 /// Compare `analytic` with central differences of `loss` on `indices` of `params`; the
 /// relative error of the whole vector must stay under `tolerance`.

@@ -3,6 +3,7 @@
 
 use nalgebra::Vector3;
 use rmvp_dataset::{Scene, Split};
+use rmvp_recon::checkpoint;
 use rmvp_recon::data::TrainingSet;
 use rmvp_recon::extract::{extract_mesh, CpuSdf};
 use rmvp_recon::model::neus_initial_radius;
@@ -151,9 +152,9 @@ fn resume_continues_bit_for_bit() {
     });
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("checkpoint.bin");
-    first.save_checkpoint(&path).unwrap();
+    checkpoint::save(&first, None, &path).unwrap();
     drop(first);
-    let mut resumed = Trainer::load_checkpoint(&path, set.clone(), &config, None).unwrap();
+    let mut resumed = checkpoint::load(&path, set.clone(), &config, None).unwrap();
     assert_eq!(resumed.iteration, 2);
     pool.install(|| {
         for _ in 0..4 {
@@ -167,7 +168,7 @@ fn resume_continues_bit_for_bit() {
     // A run of another configuration is refused before a model is built from the header.
     let mut other = config.clone();
     other.batch_rays += 1;
-    let err = Trainer::load_checkpoint(&path, set.clone(), &other, None).err().expect("another configuration");
+    let err = checkpoint::load(&path, set.clone(), &other, None).err().expect("another configuration");
     assert!(matches!(err, Error::CheckpointSettings { .. }), "{err}");
 
     // One of another format (an older layout of the parameters) is refused, saying so.
@@ -177,12 +178,12 @@ fn resume_continues_bit_for_bit() {
     let mut older = bytes.clone();
     older[at] = b'1';
     std::fs::write(&path, &older).unwrap();
-    let err = Trainer::load_checkpoint(&path, set.clone(), &config, None).err().expect("older format refused");
+    let err = checkpoint::load(&path, set.clone(), &config, None).err().expect("older format refused");
     assert!(err.to_string().contains("format rmvp-recon-checkpoint-1"), "{err}");
 
     // A truncated checkpoint is refused with the file's name.
     std::fs::write(&path, &bytes[..bytes.len() - 10]).unwrap();
-    let err = Trainer::load_checkpoint(&path, set, &config, None).err().expect("truncated checkpoint refused");
+    let err = checkpoint::load(&path, set, &config, None).err().expect("truncated checkpoint refused");
     assert!(matches!(&err, Error::BadCheckpoint { path: p, problem } if *p == path && problem.contains("truncated")));
     assert!(err.to_string().contains("checkpoint.bin"), "{err}");
 }

@@ -1,0 +1,203 @@
+//! One training step's compute: the gradient of the weighted losses over a batch of rays, the
+//! seam between the training loop ([`crate::train`]) and an engine. [`CpuStep`] is rmvp's own
+//! engine on the CPU's cores; another (a GPU's) implements [`StepCompute`] and the loop, its
+//! schedule, checkpoints and reports stay as they are.
+//!
+//! A batch is cut into a fixed number of chunks whose gradients are summed in order, so results
+//! do not depend on the number of threads.
+
+use crate::config::TrainConfig;
+use crate::data::TrainingSet;
+use crate::geometric::{curved_robust_scale, robust_scale, tangent_loss, tangents};
+use crate::losses::{curvature, eikonal, l1, mask_bce, PerTerm, Term};
+use crate::model::{GridGradient, Model, STOKES};
+use crate::volume::{sample_depths, Forward, RayGrad};
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// One step's rays and the schedule's state at its iteration.
+#[derive(Clone, Debug)]
+pub struct Batch {
+    /// The rays, as (view, pixel) of the training set.
+    pub rays: Vec<(u32, u32)>,
+    /// Each ray's coarse-sampling shift, in `[0, 1)` of a step.
+    pub jitter: Vec<f32>,
+    /// Per-level weights of the hash grid (coarse to fine).
+    pub level_weight: Vec<f32>,
+    /// Finite-difference step of the normals.
+    pub fd_step: f32,
+    /// In the diffuse-only warm-up.
+    pub warm: bool,
+    /// The geometric loss is on.
+    pub use_geometric: bool,
+}
+
+/// What a step's compute returns.
+#[derive(Clone, Debug)]
+pub struct StepGradient {
+    /// The gradient of the weighted losses, over the whole parameter vector.
+    pub grad: Vec<f32>,
+    /// Each term's loss, unweighted.
+    pub losses: PerTerm<f64>,
+    /// Samples evaluated.
+    pub samples: usize,
+}
+
+/// An engine that computes a step's gradient.
+pub trait StepCompute: Send + Sync {
+    /// The gradient and losses of `batch` for `model` at `params` on `set` under `config`.
+    fn gradient(
+        &self,
+        model: &Model,
+        params: &[f32],
+        set: &TrainingSet,
+        config: &TrainConfig,
+        batch: &Batch,
+    ) -> StepGradient;
+}
+
+/// rmvp's engine on the CPU: chunks of rays in parallel (rayon), summed in order.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct CpuStep;
+
+/// Rays per chunk of a batch; chunks run in parallel and are summed in order.
+const CHUNK_RAYS: usize = 32;
+
+/// The losses' normalisers: rays, rays inside the masks, samples.
+struct Norms {
+    rays: f32,
+    masked: f32,
+    samples: f32,
+}
+
+#[derive(Default)]
+struct ChunkSums {
+    losses: PerTerm<f64>,
+    samples: usize,
+}
+
+/// One step's inputs, shared by its chunks.
+struct Step<'a> {
+    model: &'a Model,
+    params: &'a [f32],
+    set: &'a TrainingSet,
+    config: &'a TrainConfig,
+    batch: &'a Batch,
+    norm: Norms,
+}
+
+impl StepCompute for CpuStep {
+    fn gradient(
+        &self,
+        model: &Model,
+        params: &[f32],
+        set: &TrainingSet,
+        config: &TrainConfig,
+        batch: &Batch,
+    ) -> StepGradient {
+        let rays = &batch.rays;
+        let masked_total = rays.iter().filter(|&&(v, p)| set.views[v as usize].mask[p as usize]).count().max(1);
+        let samples_per_ray = config.sampling.coarse + config.sampling.fine;
+        let norm = Norms {
+            rays: rays.len() as f32,
+            masked: masked_total as f32,
+            samples: (rays.len() * samples_per_ray) as f32,
+        };
+        let step = Step { model, params, set, config, batch, norm };
+        let chunks: Vec<Range<usize>> =
+            (0..rays.len()).step_by(CHUNK_RAYS).map(|s| s..(s + CHUNK_RAYS).min(rays.len())).collect();
+        let results: Vec<(Vec<f32>, GridGradient, ChunkSums)> =
+            chunks.into_par_iter().map(|range| step.chunk(range)).collect();
+        // Summed in chunk order (the networks') and level by level in chunk order (the hash
+        // grid's): the same step whatever the number of threads.
+        let mut grad = vec![0f32; params.len()];
+        let mut sums = ChunkSums::default();
+        for (g, _, s) in &results {
+            grad[..g.len()].iter_mut().zip(g).for_each(|(a, b)| *a += b);
+            for term in Term::ALL {
+                sums.losses[term] += s.losses[term];
+            }
+            sums.samples += s.samples;
+        }
+        let grid: Vec<&GridGradient> = results.iter().map(|r| &r.1).collect();
+        model.field.add_grid_gradients(&grid, &batch.level_weight, &mut grad);
+        StepGradient { grad, losses: sums.losses, samples: sums.samples }
+    }
+}
+
+impl Step<'_> {
+    /// The gradient and losses of the batch's rays in `range`.
+    fn chunk(&self, range: Range<usize>) -> (Vec<f32>, GridGradient, ChunkSums) {
+        let (set, model, params, config) = (self.set, self.model, self.params, self.config);
+        let (batch, jitter) = (&self.batch.rays[range.clone()], &self.batch.jitter[range]);
+        let (level_weight, fd_step, warm) = (&self.batch.level_weight[..], self.batch.fd_step, self.batch.warm);
+        let (use_geometric, norm) = (self.batch.use_geometric, &self.norm);
+        let rays: Vec<_> = batch.iter().map(|&(v, p)| set.ray(v, p)).collect();
+        let depths = sample_depths(model, params, level_weight, &rays, config.sampling, jitter);
+        let fwd = Forward::run(model, params, level_weight, &rays, &depths, fd_step, warm);
+        let w = &config.weights;
+        let mut sums = ChunkSums { samples: fwd.samples(), ..Default::default() };
+        let mut grads = vec![RayGrad::default(); rays.len()];
+        let mut surface = Vec::new();
+        for (r, (&(v, p), out)) in batch.iter().zip(&fwd.rays).enumerate() {
+            let view = &set.views[v as usize];
+            let inside = view.mask[p as usize];
+            let (loss, d) = mask_bce(out.opacity, inside);
+            sums.losses[Term::Mask] += loss as f64 / norm.rays as f64;
+            grads[r].opacity = w[Term::Mask] * d / norm.rays;
+            if !inside {
+                continue;
+            }
+            if config.photometric {
+                let target = &view.stokes[STOKES * p as usize..STOKES * (p as usize + 1)];
+                let used = if warm { 3 } else { STOKES };
+                for k in 0..used {
+                    // Mean over the colour channels, summed over S0, S1, S2.
+                    let (loss, d) = l1(out.stokes[k], target[k]);
+                    sums.losses[Term::Photometric] += loss as f64 / 3.0 / norm.masked as f64;
+                    grads[r].stokes[k] = w[Term::Photometric] * d / 3.0 / norm.masked;
+                }
+            }
+            if use_geometric && out.opacity > 0.5 {
+                let t = out.depth / out.opacity;
+                surface.push((r, rays[r].at(t), out.normal));
+            }
+        }
+        if use_geometric && !surface.is_empty() {
+            let points: Vec<[f32; 3]> = surface.iter().map(|s| s.1).collect();
+            let normals: Vec<[f32; 3]> = surface.iter().map(|s| s.2).collect();
+            let robust = robust_scale(config.tangent_robust_angle);
+            let found =
+                tangents(set, config.aop_reliability, model, params, level_weight, &points, &normals, robust > 0.0);
+            for ((r, _, n), at) in surface.iter().zip(&found) {
+                let robust = curved_robust_scale(robust, at.curvature_share);
+                let (loss, dn) = tangent_loss(*n, &at.views, config.tangent_azimuth_only, robust);
+                sums.losses[Term::Geometric] += loss as f64 / norm.masked as f64;
+                grads[*r].normal = dn.map(|d| d * w[Term::Geometric] / norm.masked);
+            }
+        }
+        // Eikonal on every sample's finite-difference gradient.
+        let mut d_gradients = vec![0f32; fwd.field.gradients.len()];
+        for (g, d) in fwd.field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)) {
+            let (loss, dg) = eikonal([g[0], g[1], g[2]]);
+            sums.losses[Term::Eikonal] += loss as f64 / norm.samples as f64;
+            for k in 0..3 {
+                d[k] = w[Term::Eikonal] * dg[k] / norm.samples;
+            }
+        }
+        // Curvature on every sample's finite-difference Laplacian.
+        let d_laplacians: Vec<f32> = fwd
+            .field
+            .laplacians
+            .iter()
+            .map(|&l| {
+                let (loss, d) = curvature(l);
+                sums.losses[Term::Curvature] += loss as f64 / norm.samples as f64;
+                w[Term::Curvature] * d / norm.samples
+            })
+            .collect();
+        let mut grad = vec![0f32; model.network_params()];
+        let grid = fwd.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
+        (grad, grid, sums)
+    }
+}
