@@ -17,7 +17,6 @@ use rayon::prelude::*;
 use rmvp_dataset::{Mesh, Scene};
 use rmvp_render::math::Vec3;
 use rmvp_render::object::roughness_property;
-use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::Object;
 use serde::{Deserialize, Serialize};
 
@@ -143,7 +142,7 @@ impl Accumulator {
 /// the scene's world frame.
 pub fn error_breakdown(views: &[ViewNormalError], scene: &Scene, gt: &Mesh) -> Result<ErrorBreakdown> {
     let has_roughness = roughness_property(gt).is_some();
-    let truth = Object::new(gt, Interface::Dielectric(1.5), Lobes::Plastic)?;
+    let truth = Object::geometry(gt)?;
     let empty = || [&DOP_EDGES[..], &ROUGHNESS_EDGES, &CROSSING_EDGES].map(Accumulator::new);
     let [dop, roughness, crossings] = views
         .par_iter()

@@ -19,6 +19,7 @@ pub mod surface;
 
 pub use error::{Error, Result};
 pub use evaluation::{evaluate, Evaluation};
-pub use icp::{align, align_files, Alignment, IcpOptions, Similarity};
+pub use icp::{align, align_files, Alignment, IcpOptions};
 pub use normals::{normal_errors, NormalReport, ViewNormalError};
+pub use rmvp_dataset::similarity::Similarity;
 pub use surface::{surface_metrics, SurfaceMetrics, SurfaceOptions};

@@ -5,7 +5,6 @@
 use crate::{Error, Result};
 use rayon::prelude::*;
 use rmvp_dataset::{Image, Mesh, Scene, Split};
-use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::{geometry_maps, Object};
 use serde::{Deserialize, Serialize};
 
@@ -36,7 +35,7 @@ pub struct NormalReport {
 
 /// Ray cast `pred` in every view of `scene` that has ground-truth normals and compare.
 pub fn normal_errors(pred: &Mesh, scene: &Scene) -> Result<NormalReport> {
-    let object = Object::new(pred, Interface::Dielectric(1.5), Lobes::Plastic)?;
+    let object = Object::geometry(pred)?;
     let views: Vec<ViewNormalError> = scene
         .views
         .par_iter()

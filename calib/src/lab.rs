@@ -9,6 +9,7 @@ use crate::board::{board_to_y_up, Board, BoardOptions};
 use crate::Result;
 use nalgebra::{Matrix3, Vector3};
 use rmvp_dataset::rng::Rng;
+use rmvp_dataset::similarity::Similarity;
 use rmvp_dataset::{Camera, Image, Mesh};
 use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::rig::look_at;
@@ -47,50 +48,15 @@ impl Default for LabOptions {
     }
 }
 
-/// The placement of the subject in the lab: `x_world = scale * rotation * x_mesh + translation`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Placement {
-    /// Rotation (the mesh's +Y up to the board's +Z up).
-    pub rotation: Matrix3<f64>,
-    /// Uniform scale (mesh units to millimetres).
-    pub scale: f64,
-    /// Translation, millimetres.
-    pub translation: Vector3<f64>,
-}
-
-impl Placement {
-    /// A mesh moved by the placement.
-    pub fn apply(&self, mesh: &Mesh) -> Mesh {
-        let positions = mesh
-            .positions
-            .iter()
-            .map(|p| {
-                let q = self.scale * (self.rotation * Vector3::new(p[0] as f64, p[1] as f64, p[2] as f64))
-                    + self.translation;
-                [q.x as f32, q.y as f32, q.z as f32]
-            })
-            .collect();
-        let normals = mesh.normals.as_ref().map(|normals| {
-            normals
-                .iter()
-                .map(|n| {
-                    let q = self.rotation * Vector3::new(n[0] as f64, n[1] as f64, n[2] as f64);
-                    [q.x as f32, q.y as f32, q.z as f32]
-                })
-                .collect()
-        });
-        Mesh { positions, normals, ..mesh.clone() }
-    }
-}
-
 /// The lab's scene: its parts, the subject's placement and where its bounding sphere is.
 pub struct Lab {
     /// Subject (first, if it stands there), board and table.
     pub parts: Vec<Part>,
     /// The subject in the world frame.
     pub subject: Mesh,
-    /// How the subject's mesh was placed.
-    pub placement: Placement,
+    /// How the subject's mesh was placed: `x_world = s R x_mesh + t` (the mesh's +Y up to the
+    /// board's +Z up, mesh units to millimetres).
+    pub placement: Similarity,
     /// Centre of the subject's bounding sphere (world, mm).
     pub center: Vector3<f64>,
     /// Its radius (mm).
@@ -111,9 +77,9 @@ impl LabOptions {
         let [w, h] = self.board.size_mm();
         // Half a millimetre above the board: the subject stands on it without sharing its plane.
         let translation = Vector3::new(w / 2.0, h / 2.0, 0.5 - scale * lowest);
-        let placement = Placement { rotation, scale, translation };
+        let placement = Similarity { r: rotation, t: translation, s: scale };
         let mut parts = Vec::new();
-        let subject = placement.apply(object);
+        let subject = placement.apply_to_mesh(object);
         if self.object {
             parts.push(Part::subject(subject.clone(), interface, Lobes::Plastic));
         }

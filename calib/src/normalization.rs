@@ -50,25 +50,6 @@ impl HullSphere {
     }
 }
 
-/// Square dilation of a mask by `r` pixels.
-fn dilate(mask: &Image<u8>, r: usize) -> Vec<bool> {
-    let (w, h) = mask.size();
-    let inside: Vec<bool> = mask.data().iter().map(|&m| m > 127).collect();
-    let mut rows = vec![false; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            rows[y * w + x] = inside[y * w + x.saturating_sub(r)..=y * w + (x + r).min(w - 1)].iter().any(|&m| m);
-        }
-    }
-    let mut out = vec![false; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            out[y * w + x] = (y.saturating_sub(r)..=(y + r).min(h - 1)).any(|yy| rows[yy * w + x]);
-        }
-    }
-    out
-}
-
 /// The point nearest (least squares) to the rays through the masks' centroids.
 fn centroid_rays_point(views: &[(Camera, Image<u8>)]) -> Result<Point3<f64>> {
     let (mut a, mut b) = (Matrix3::zeros(), Vector3::zeros());
@@ -118,7 +99,13 @@ pub fn visual_hull_sphere(views: &[(Camera, Image<u8>)]) -> Result<HullSphere> {
         let b = camera.unproject(&Point2::new(x1 as f64 + 1.0, y1 as f64 + 1.0), depth);
         half = half.max((a - b).norm() / 2.0);
     }
-    let masks: Vec<Vec<bool>> = views.par_iter().map(|(_, m)| dilate(m, DILATION)).collect();
+    let masks: Vec<Vec<bool>> = views
+        .par_iter()
+        .map(|(_, m)| {
+            let inside: Vec<bool> = m.data().iter().map(|&v| v > 127).collect();
+            rmvp_dataset::image::dilate(&inside, m.width(), m.height(), DILATION)
+        })
+        .collect();
     let whole: Vec<bool> = views.iter().map(|(_, m)| sees_whole_object(m)).collect();
     let mut extent = 1.5 * half.max(1e-9);
     for _ in 0..4 {

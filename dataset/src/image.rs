@@ -171,3 +171,41 @@ impl Image<f32> {
         out
     }
 }
+
+/// Square dilation of a `width x height` mask (row-major) by `r` pixels: a pixel is inside when
+/// any pixel within `r` of it along both axes is (separable max, rows then columns).
+pub fn dilate(mask: &[bool], width: usize, height: usize, r: usize) -> Vec<bool> {
+    let (w, h) = (width, height);
+    let mut rows = vec![false; w * h];
+    for y in 0..h {
+        for x in 0..w {
+            let (a, b) = (x.saturating_sub(r), (x + r).min(w - 1));
+            rows[y * w + x] = mask[y * w + a..=y * w + b].iter().any(|&m| m);
+        }
+    }
+    let mut out = vec![false; w * h];
+    for y in 0..h {
+        let (a, b) = (y.saturating_sub(r), (y + r).min(h - 1));
+        for x in 0..w {
+            out[y * w + x] = (a..=b).any(|yy| rows[yy * w + x]);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn dilation_grows_a_pixel_into_a_square_clipped_at_the_border() {
+        let (w, h) = (7, 5);
+        let mut mask = vec![false; w * h];
+        mask[2 * w + 1] = true;
+        let grown = super::dilate(&mask, w, h, 2);
+        for y in 0..h {
+            for x in 0..w {
+                assert_eq!(grown[y * w + x], x <= 3 && y <= 4, "({x}, {y})");
+            }
+        }
+        assert_eq!(super::dilate(&mask, w, h, 0), mask);
+    }
+}

@@ -26,6 +26,7 @@ pub mod progress;
 pub mod rng;
 pub mod scene;
 pub mod session;
+pub mod similarity;
 pub mod summary;
 pub mod visualize;
 

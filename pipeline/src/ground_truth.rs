@@ -7,20 +7,14 @@ use rmvp_dataset::io::{exr, png};
 use rmvp_dataset::progress::progress_bar;
 use rmvp_dataset::visualize::normal_picture;
 use rmvp_dataset::{Image, Mesh, Scene};
-use rmvp_render::pbrdf::{Interface, Lobes};
 use rmvp_render::{geometry_maps, Object};
 use std::path::Path;
-
-/// The mesh as an object to ray cast (the material does not matter to geometry).
-fn geometry_object(mesh: &Mesh) -> Result<Object> {
-    Ok(Object::new(mesh, Interface::Dielectric(1.5), Lobes::Plastic)?)
-}
 
 /// Normals and depth of `mesh` in every view of `scene`, the mesh as the scene's ground truth;
 /// returns each view's IoU of its own mask with the mesh's silhouette (0 without a mask), and
 /// the view's name.
 pub fn set_ground_truth(scene: &mut Scene, mesh: &Mesh) -> Result<Vec<(f64, String)>> {
-    let object = geometry_object(mesh)?;
+    let object = Object::geometry(mesh)?;
     let ious = scene
         .views
         .iter_mut()
@@ -53,7 +47,7 @@ pub fn mask_iou(a: &Image<u8>, b: &Image<u8>) -> f64 {
 /// Ray cast `mesh` in every view of `scene` and write `DIR/<view>_normal.exr` (world frame,
 /// N.X N.Y N.Z), `<view>_normal.png`, `<view>_mask.png` and `<view>_depth.exr` (Z).
 pub fn write_ground_truth_maps(mesh: &Mesh, scene: &Scene, dir: &Path, progress: bool) -> Result<()> {
-    let object = geometry_object(mesh)?;
+    let object = Object::geometry(mesh)?;
     let bar = progress_bar(progress, scene.views.len() as u64, "normals");
     for view in &scene.views {
         let maps = geometry_maps(&object, &view.camera);

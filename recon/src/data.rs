@@ -178,7 +178,7 @@ impl TrainingSet {
         let (mut pool, mut background) = (Vec::new(), Vec::new());
         for (vi, v) in views.iter().enumerate() {
             let (w, h) = (v.camera.width as usize, v.camera.height as usize);
-            let dilated = dilate(&v.mask, w, h, margin);
+            let dilated = rmvp_dataset::image::dilate(&v.mask, w, h, margin);
             for (k, &near_object) in dilated.iter().enumerate() {
                 if frame.pixel_ray(&v.camera, (k % w) as u32, (k / w) as u32).is_some() {
                     if near_object { &mut pool } else { &mut background }.push((vi as u32, k as u32));
@@ -194,23 +194,4 @@ impl TrainingSet {
         let w = v.width() as u32;
         self.frame.pixel_ray(&v.camera, pixel % w, pixel / w).expect("pool rays hit the sphere")
     }
-}
-
-/// Square dilation of a mask by `r` pixels (separable max).
-pub fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
-    let mut rows = vec![false; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let (a, b) = (x.saturating_sub(r), (x + r).min(w - 1));
-            rows[y * w + x] = mask[y * w + a..=y * w + b].iter().any(|&m| m);
-        }
-    }
-    let mut out = vec![false; w * h];
-    for y in 0..h {
-        let (a, b) = (y.saturating_sub(r), (y + r).min(h - 1));
-        for x in 0..w {
-            out[y * w + x] = (a..=b).any(|yy| rows[yy * w + x]);
-        }
-    }
-    out
 }

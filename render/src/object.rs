@@ -110,6 +110,12 @@ impl Object {
         Self::from_parts(vec![Part::subject(mesh.clone(), interface, lobes)])
     }
 
+    /// A mesh to ray cast for its geometry alone (normals, depth, silhouettes, crossings): a
+    /// material is needed to build an object and is never looked at.
+    pub fn geometry(mesh: &Mesh) -> Result<Self> {
+        Self::new(mesh, Interface::Dielectric(1.5), Lobes::Plastic)
+    }
+
     /// A scene of several parts in one BVH (each prepared as [`Object::new`] does).
     pub fn from_parts(parts: Vec<Part>) -> Result<Self> {
         if parts.is_empty() {

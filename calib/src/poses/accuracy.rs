@@ -3,50 +3,8 @@
 //! that best maps one set of camera centres onto the other (Umeyama 1991) when the world frame
 //! of one set is arbitrary (COLMAP's).
 
-use nalgebra::{Matrix3, Vector3};
+use rmvp_dataset::similarity::{rotation_angle_deg, Similarity};
 use rmvp_dataset::Camera;
-
-/// A similarity `x -> scale * rotation * x + translation`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Similarity {
-    /// Scale.
-    pub scale: f64,
-    /// Rotation.
-    pub rotation: Matrix3<f64>,
-    /// Translation.
-    pub translation: Vector3<f64>,
-}
-
-impl Similarity {
-    /// The identity.
-    pub fn identity() -> Self {
-        Self { scale: 1.0, rotation: Matrix3::identity(), translation: Vector3::zeros() }
-    }
-
-    /// The similarity that maps `from` onto `to` best in the least-squares sense (Umeyama 1991;
-    /// a proper rotation). Needs three points not on one line.
-    pub fn fit(from: &[Vector3<f64>], to: &[Vector3<f64>]) -> Self {
-        let n = from.len().max(1) as f64;
-        let (mean_from, mean_to) = (from.iter().sum::<Vector3<f64>>() / n, to.iter().sum::<Vector3<f64>>() / n);
-        let covariance =
-            from.iter().zip(to).map(|(f, t)| (t - mean_to) * (f - mean_from).transpose()).sum::<Matrix3<f64>>() / n;
-        let variance = from.iter().map(|f| (f - mean_from).norm_squared()).sum::<f64>() / n;
-        let svd = covariance.svd(true, true);
-        let (u, v_t) = (svd.u.expect("asked for"), svd.v_t.expect("asked for"));
-        let mut d = Matrix3::identity();
-        if (u * v_t).determinant() < 0.0 {
-            d[(2, 2)] = -1.0;
-        }
-        let rotation = u * d * v_t;
-        let scale = svd.singular_values.component_mul(&d.diagonal()).sum() / variance.max(f64::MIN_POSITIVE);
-        Self { scale, rotation, translation: mean_to - scale * rotation * mean_from }
-    }
-
-    /// A point moved by the similarity.
-    pub fn apply(&self, p: &Vector3<f64>) -> Vector3<f64> {
-        self.scale * self.rotation * p + self.translation
-    }
-}
 
 /// The errors of a set of poses against reference poses of the same views.
 #[derive(Clone, Debug, PartialEq)]
@@ -72,11 +30,6 @@ impl PoseErrors {
     }
 }
 
-/// The angle of a rotation matrix, degrees.
-pub fn rotation_angle_deg(r: &Matrix3<f64>) -> f64 {
-    ((r.trace() - 1.0) / 2.0).clamp(-1.0, 1.0).acos().to_degrees()
-}
-
 /// Compare `found` with `reference` (the same views, in order): directly, or with
 /// `up_to_similarity` after the similarity that maps the found camera centres onto the
 /// reference's best.
@@ -90,7 +43,7 @@ pub fn pose_errors(found: &[Camera], reference: &[Camera], up_to_similarity: boo
     let (mut rotation_deg, mut centre_distance) = (Vec::new(), Vec::new());
     for (f, r) in found.iter().zip(reference) {
         // World-to-camera rotation of the found camera in the reference frame: R_f S^T.
-        let moved = f.r * similarity.rotation.transpose();
+        let moved = f.r * similarity.r.transpose();
         rotation_deg.push(rotation_angle_deg(&(moved * r.r.transpose())));
         centre_distance.push((similarity.apply(&f.center().coords) - r.center().coords).norm());
     }
@@ -100,7 +53,7 @@ pub fn pose_errors(found: &[Camera], reference: &[Camera], up_to_similarity: boo
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::Rotation3;
+    use nalgebra::{Matrix3, Rotation3, Vector3};
 
     #[test]
     fn a_known_similarity_is_found_and_removed() {
@@ -124,7 +77,7 @@ mod tests {
         let direct = pose_errors(&moved, &truth, false);
         assert!(direct.max_rotation_deg() > 10.0);
         let fitted = pose_errors(&moved, &truth, true);
-        assert!((fitted.similarity.scale - 1.0 / s).abs() < 1e-9, "{:?}", fitted.similarity);
+        assert!((fitted.similarity.s - 1.0 / s).abs() < 1e-9, "{:?}", fitted.similarity);
         assert!(fitted.max_rotation_deg() < 1e-5 && fitted.max_centre_distance() < 1e-9, "{fitted:?}");
     }
 }

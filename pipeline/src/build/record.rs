@@ -1,0 +1,329 @@
+//! `build.json`: what a dataset was built from, how, and which stages are done
+//! ([`BuildRecord`]), and the options a build records ([`BuildOptions`]); read by verify,
+//! publish, the demo and the benches.
+
+use crate::Result;
+use rmvp_align::icp::Alignment;
+use rmvp_dataset::io::json::{free_form, read_json, write_json};
+use rmvp_recon::options::ReconOptions;
+use rmvp_recon::presets::Preset;
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The record of a build, in the dataset folder.
+pub const BUILD_FILE: &str = "build.json";
+/// The `format` of [`BuildRecord`].
+pub const BUILD_FORMAT: &str = "rmvp-build-2";
+
+/// Which views train (recorded as the count or the list of names).
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum TrainViews {
+    /// This many, spread over the viewing directions (farthest-point sampling).
+    Count(usize),
+    /// These, by name.
+    Names(Vec<String>),
+}
+
+impl std::fmt::Display for TrainViews {
+    /// As the command line takes it: the count, or the names joined by commas.
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self {
+            TrainViews::Count(n) => write!(f, "{n}"),
+            TrainViews::Names(names) => write!(f, "{}", names.join(",")),
+        }
+    }
+}
+
+impl std::str::FromStr for TrainViews {
+    type Err = String;
+
+    /// `6` (a count) or `000,007,013` (names).
+    fn from_str(text: &str) -> std::result::Result<Self, String> {
+        match text.parse::<usize>() {
+            Ok(0) => Err("at least one training view".into()),
+            Ok(n) if !text.contains(',') => Ok(TrainViews::Count(n)),
+            _ => {
+                Ok(TrainViews::Names(text.split(',').map(|s| s.trim().to_string()).filter(|s| !s.is_empty()).collect()))
+            }
+        }
+    }
+}
+
+/// A unit of length a scan may be stored in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum LengthUnit {
+    /// Millimetres (Creaform and most scanners).
+    Mm,
+    /// Centimetres.
+    Cm,
+    /// Metres.
+    M,
+    /// Inches.
+    In,
+}
+
+impl LengthUnit {
+    /// The unit's symbol.
+    pub fn name(self) -> &'static str {
+        match self {
+            LengthUnit::Mm => "mm",
+            LengthUnit::Cm => "cm",
+            LengthUnit::M => "m",
+            LengthUnit::In => "in",
+        }
+    }
+
+    /// One unit in millimetres.
+    pub fn millimetres(self) -> f64 {
+        match self {
+            LengthUnit::Mm => 1.0,
+            LengthUnit::Cm => 10.0,
+            LengthUnit::M => 1000.0,
+            LengthUnit::In => 25.4,
+        }
+    }
+}
+
+/// A laser scan to align.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScanInput {
+    /// PLY, STL or OBJ, any pose.
+    pub path: PathBuf,
+    /// Its unit of length.
+    pub units: LengthUnit,
+}
+
+/// A panorama to turn into the environment map.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PanoramaInput {
+    /// EXR, HDR, PNG or JPEG, equirectangular.
+    pub path: PathBuf,
+    /// Turn about the up axis after the world's own rotation (the board frame's z up to the
+    /// panorama's +Y up), degrees.
+    pub yaw_deg: f64,
+}
+
+/// What to build; [`BuildOptions::default`] holds `rmvp dataset build`'s defaults.
+/// All but `output`, `resume` and `progress` are recorded in `build.json`: a resumed build must
+/// be asked the same.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BuildOptions {
+    /// The posed, masked session.
+    pub session: PathBuf,
+    /// The dataset folder.
+    #[serde(skip)]
+    pub output: PathBuf,
+    /// The training split (NeRSP: 6 sparse views).
+    #[serde(deserialize_with = "free_form")]
+    pub train: TrainViews,
+    /// The camera calibration the poses used (`camera.json`), for the record.
+    pub calibration: Option<PathBuf>,
+    /// A laser scan: ground truth in the dataset.
+    pub scan: Option<ScanInput>,
+    /// A panorama: the environment map.
+    pub panorama: Option<PanoramaInput>,
+    /// The reference reconstruction from all views (with a scan).
+    pub reference: ReconOptions,
+    /// Continue an unfinished build in `output`.
+    #[serde(skip)]
+    pub resume: bool,
+    /// Show progress bars.
+    #[serde(skip)]
+    pub progress: bool,
+}
+
+impl Default for BuildOptions {
+    fn default() -> Self {
+        Self {
+            session: PathBuf::from("session"),
+            output: PathBuf::from("dataset"),
+            train: TrainViews::Count(6),
+            calibration: None,
+            scan: None,
+            panorama: None,
+            reference: ReconOptions {
+                preset: Preset::Dense,
+                mesh_res: 384,
+                mesh_only: true,
+                checkpoint_every: 250,
+                ..ReconOptions::default()
+            },
+            resume: false,
+            progress: true,
+        }
+    }
+}
+
+/// How the views were posed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PoseSummary {
+    /// Method (`charuco`, `colmap`, ...).
+    #[serde(deserialize_with = "free_form")]
+    pub method: serde_json::Value,
+    /// The world frame.
+    pub world: String,
+    /// Mean RMS reprojection error of the posing points over the views, pixels.
+    pub residual_px_mean: Option<f64>,
+    /// Largest of them.
+    pub residual_px_max: Option<f64>,
+    /// Views the method could not pose.
+    pub failed: Vec<String>,
+}
+
+/// The camera calibration's figures.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CalibrationSummary {
+    /// RMS reprojection error over all corners, pixels.
+    pub rms_px: f64,
+    /// Standard deviations of fx, fy, cx, cy, pixels.
+    pub k_std_px: [f64; 4],
+    /// Board images used.
+    pub images: usize,
+}
+
+/// The reference reconstruction.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceSummary {
+    /// Preset.
+    pub preset: Preset,
+    /// Iterations.
+    pub iterations: u32,
+    /// Views it trained on (all).
+    pub views: usize,
+    /// Marching grid cells per axis.
+    pub mesh_resolution: usize,
+}
+
+/// The scan and its alignment.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ScanSummary {
+    /// The scan file.
+    pub file: PathBuf,
+    /// Its units.
+    pub units: LengthUnit,
+    /// Scan to world (`x_world = s R x_scan + t`), RMS and median residuals in world units.
+    pub alignment: Alignment,
+    /// The scale its units give in a millimetre world (`None`: the world's scale is arbitrary
+    /// and the units were not checked). When known, the alignment is rigid at this scale.
+    pub expected_scale: Option<f64>,
+    /// The scale that a fit with a free scale found (the units' check; it differs from the
+    /// expected one by the reference's own error of size).
+    #[serde(default)]
+    pub free_scale: f64,
+    /// Median scan-to-reference distance over the reference's bounding-box diagonal.
+    pub median_distance_relative: f64,
+    /// Captured masks against the scan's silhouettes: mean IoU over the views.
+    pub mask_iou_mean: f64,
+    /// The lowest IoU and its view.
+    pub mask_iou_min: (f64, String),
+}
+
+/// The environment map.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EnvironmentSummary {
+    /// The panorama file.
+    pub file: PathBuf,
+    /// Map size.
+    pub size: [usize; 2],
+    /// World to panorama frame, rows.
+    pub world_to_panorama: [[f64; 3]; 3],
+    /// The mapping of `env.exr`.
+    pub convention: String,
+}
+
+/// One finished stage.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct StageRecord {
+    /// The stage.
+    pub name: Stage,
+    /// Wall time, seconds (of the run that finished it).
+    pub seconds: f64,
+}
+
+/// `build.json`: what a dataset was built from, how, and which stages are done.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BuildRecord {
+    /// [`BUILD_FORMAT`].
+    pub format: String,
+    /// What was asked (the recorded [`BuildOptions`]).
+    pub options: BuildOptions,
+    /// The object's name (the session's).
+    pub object: String,
+    /// The camera (identity, pixel format, size) as the session recorded it.
+    #[serde(deserialize_with = "free_form")]
+    pub camera: serde_json::Value,
+    /// Acquisition settings as the session recorded them.
+    #[serde(deserialize_with = "free_form")]
+    pub settings: serde_json::Value,
+    /// Views in the dataset.
+    pub views: Vec<String>,
+    /// The training split.
+    pub train: Vec<String>,
+    /// Image size.
+    pub size: [u32; 2],
+    /// Poses.
+    pub poses: PoseSummary,
+    /// Calibration.
+    pub calibration: Option<CalibrationSummary>,
+    /// Reference reconstruction.
+    pub reference: Option<ReferenceSummary>,
+    /// Scan.
+    pub scan: Option<ScanSummary>,
+    /// Environment map.
+    pub environment: Option<EnvironmentSummary>,
+    /// Finished stages, in order.
+    pub stages: Vec<StageRecord>,
+    /// All stages done and both layouts in place.
+    pub complete: bool,
+}
+
+impl BuildRecord {
+    /// Read `DATASET/build.json`.
+    pub fn read(dataset: &Path) -> Result<Self> {
+        let path = dataset.join(BUILD_FILE);
+        let record: Self = read_json(&path, "a dataset build record")?;
+        // View names become file names in exports and contact sheets.
+        for name in record.views.iter().chain(&record.train) {
+            rmvp_dataset::io::input::file_name(name)
+                .map_err(|why| rmvp_dataset::Error::format(&path, format!("view {why}")))?;
+        }
+        Ok(record)
+    }
+
+    pub(super) fn write(&self, dataset: &Path) -> Result<()> {
+        Ok(write_json(&dataset.join(BUILD_FILE), self)?)
+    }
+
+    pub(super) fn done(&self, stage: Stage) -> bool {
+        self.stages.iter().any(|s| s.name == stage)
+    }
+}
+
+/// The stages of a build, in order; each finished one is kept in `build.json`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Stage {
+    /// The posed, masked views, split and undistorted.
+    Views,
+    /// The reference shape from all views (with a scan).
+    Reference,
+    /// The scan aligned onto the reference.
+    Scan,
+    /// Ground truth (mesh, normals, depth) from the aligned scan: seconds, done again on resume.
+    GroundTruth,
+    /// The environment map from the panorama: done again on resume.
+    Environment,
+    /// Both layouts, each written aside and moved into place whole.
+    Layouts,
+}
+
+impl std::fmt::Display for Stage {
+    /// The stage's name in `build.json`.
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        self.serialize(f)
+    }
+}
