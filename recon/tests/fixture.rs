@@ -43,4 +43,3 @@ fn the_fast_preset_reconstructs_the_spot_fixture() {
     let mae = normal_mae(0, 400);
     assert!(mae < 12.5, "normal MAE {mae:.2} deg");
 }
-
