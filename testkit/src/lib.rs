@@ -200,6 +200,14 @@ pub fn run_limited(command: &mut std::process::Command, deadline: std::time::Dur
     Limited { status, stdout: stdout.join().unwrap(), stderr: stderr.join().unwrap(), peak_bytes }
 }
 
+/// Run the test named `test` of this test binary alone, in a child process with the variable
+/// `child` set (which tells it it is the child), under [`run_limited`].
+pub fn run_test_in_child(test: &str, child: (&str, &str), deadline: std::time::Duration) -> Limited {
+    let mut command = std::process::Command::new(std::env::current_exe().unwrap());
+    command.args([test, "--exact", "--nocapture", "--test-threads=1"]).env(child.0, child.1);
+    run_limited(&mut command, deadline)
+}
+
 /// The variable that makes a test binary a child running one test's body.
 const LIMITED_CASE: &str = "RMVP_LIMITED_CASE";
 
@@ -212,10 +220,8 @@ pub fn limited_case(test: &str, body: impl FnOnce()) -> u64 {
         body();
         return 0;
     }
-    let mut command = std::process::Command::new(std::env::current_exe().unwrap());
-    command.args([test, "--exact", "--nocapture", "--test-threads=1"]).env(LIMITED_CASE, test);
     let deadline = std::time::Duration::from_secs(60);
-    let run = run_limited(&mut command, deadline);
+    let run = run_test_in_child(test, (LIMITED_CASE, test), deadline);
     let output = format!("{}\n{}", run.stdout, run.stderr);
     match run.status {
         None => panic!("{test}: still ran after {deadline:?}\n{output}"),

@@ -6,7 +6,6 @@
 //! more memory, never a hang.
 
 use std::path::Path;
-use std::process::Command;
 use std::time::{Duration, Instant};
 
 /// Mutations per family.
@@ -202,10 +201,8 @@ pub fn run_family(families: &[Family], name: &str) {
         return;
     }
     let test = format!("{}_family", name.replace('-', "_"));
-    let mut command = Command::new(std::env::current_exe().unwrap());
-    command.args([test.as_str(), "--exact", "--nocapture", "--test-threads=1"]).env(CHILD, name);
     let started = Instant::now();
-    let run = crate::run_limited(&mut command, DEADLINE);
+    let run = crate::run_test_in_child(&test, (CHILD, name), DEADLINE);
     let lines: Vec<&str> = run.stdout.lines().collect();
     let last = lines.iter().rev().find(|l| l.starts_with("mutation ")).copied().unwrap_or_default();
     let summary = lines.iter().find(|l| l.starts_with("summary ")).copied();

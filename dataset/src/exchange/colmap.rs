@@ -261,7 +261,7 @@ impl<'a> Bytes<'a> {
 
     /// Pass over `n` bytes.
     fn skip(&mut self, n: u64) -> Result<()> {
-        if n > self.len - self.at.min(self.len) {
+        if n > self.len.saturating_sub(self.at) {
             return Err(self.truncated());
         }
         self.reader.seek_relative(n as i64).map_err(|e| Error::io(self.path, e))?;

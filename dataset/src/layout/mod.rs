@@ -15,7 +15,7 @@ pub mod pandora;
 pub mod rmvp;
 pub mod rmvp3d;
 
-use crate::{Error, Result, Scene};
+use crate::{Error, Image, Result, Scene};
 use std::fmt::Display;
 use std::path::Path;
 
@@ -27,6 +27,18 @@ fn check_size(path: &Path, got: (usize, usize), reference: impl Display, expecte
         return Err(Error::format(path, why));
     }
     Ok(())
+}
+
+/// Read the image at `path` with `read`, refused by [`check_size`] when it is not `expected`.
+fn read_sized<T: Copy>(
+    path: &Path,
+    read: impl FnOnce(&Path) -> Result<Image<T>>,
+    reference: impl Display,
+    expected: (usize, usize),
+) -> Result<Image<T>> {
+    let image = read(path)?;
+    check_size(path, image.size(), reference, expected)?;
+    Ok(image)
 }
 
 /// A scene folder layout.

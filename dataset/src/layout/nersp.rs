@@ -16,7 +16,7 @@
 //! gt/mesh.ply gt/env.exr       ground-truth mesh and environment map
 //! ```
 
-use super::{array_from_image, check_size, image_from_array};
+use super::{array_from_image, check_size, image_from_array, read_sized};
 use crate::camera::{matrix_from_rows, matrix_rows};
 use crate::io::{exr, input, json, npy, png, write_bytes_atomically};
 use crate::polarization::{aop_from_u16, aop_to_u16, POLARIZER_ANGLES_DEG};
@@ -239,18 +239,14 @@ fn read_train_view(
     view.mask = Some(mask);
     let preview_path = train_file(dir, "image", i, "png");
     if preview_path.is_file() {
-        let preview = png::read_png_u8(&preview_path)?;
-        sized(&preview_path, preview.size())?;
-        view.preview = Some(preview);
+        view.preview = Some(read_sized(&preview_path, png::read_png_u8, s0_path.display(), (w, h))?);
     }
     let polarizer_path = |deg: u32| dir.join("polarized").join(format!("{i:04}_{deg:03}.png"));
     if polarizer_path(0).is_file() {
-        let mut images = Vec::with_capacity(4);
-        for deg in POLARIZER_ANGLES_DEG {
-            let image = png::read_png_u16(&polarizer_path(deg))?;
-            sized(&polarizer_path(deg), image.size())?;
-            images.push(image);
-        }
+        let images: Vec<_> = POLARIZER_ANGLES_DEG
+            .iter()
+            .map(|&deg| read_sized(&polarizer_path(deg), png::read_png_u16, s0_path.display(), (w, h)))
+            .collect::<Result<_>>()?;
         let images = images.try_into().expect("four polarizer angles");
         view.polarized = Some(PolarizerImages { scale: png_scale, images });
     }
@@ -328,15 +324,11 @@ fn read_ground_truth_images(dir: &Path, index: usize, view: &mut View) -> Result
     }
     let normal_path = dir.join("gt/normal").join(format!("{}.exr", view.name));
     if normal_path.is_file() {
-        let normals = exr::read_exr(&normal_path, &NORMAL_CHANNELS)?;
-        sized(&normal_path, normals.size())?;
-        view.normals = Some(normals);
+        view.normals = Some(read_sized(&normal_path, |p| exr::read_exr(p, &NORMAL_CHANNELS), &reference, size)?);
     }
     let depth_path = dir.join("gt/depth").join(format!("{}.exr", view.name));
     if depth_path.is_file() {
-        let depth = exr::read_exr(&depth_path, &["Z"])?;
-        sized(&depth_path, depth.size())?;
-        view.depth = Some(depth);
+        view.depth = Some(read_sized(&depth_path, |p| exr::read_exr(p, &["Z"]), &reference, size)?);
     }
     Ok(())
 }

@@ -12,7 +12,7 @@
 //! mesh.ply env.exr                 ground-truth mesh and environment map
 //! ```
 
-use super::check_size;
+use super::{check_size, read_sized};
 use crate::camera::CameraRecord;
 use crate::io::{exr, input, json, png, write_bytes_atomically};
 use crate::polarization::POLARIZER_ANGLES_DEG;
@@ -152,18 +152,7 @@ fn read_view(
     let camera = Camera::try_from(&record.camera).map_err(|e| Error::invalid(format!("view {}: {e}", record.name)))?;
     let size = (camera.width as usize, camera.height as usize);
     let reference = format!("the camera of view {} in {}", record.name, manifest.display());
-    let sized = |name: &String, read: &dyn Fn(&Path) -> Result<Image<f32>>| -> Result<Image<f32>> {
-        let path = file(name)?;
-        let image = read(&path)?;
-        check_size(&path, image.size(), &reference, size)?;
-        Ok(image)
-    };
-    let sized_u8 = |name: &String| -> Result<Image<u8>> {
-        let path = file(name)?;
-        let image = png::read_png_u8(&path)?;
-        check_size(&path, image.size(), &reference, size)?;
-        Ok(image)
-    };
+    let sized = |name: &String, read: fn(&Path) -> Result<Image<f32>>| read_sized(&file(name)?, read, &reference, size);
     let mut view = View::new(record.name.clone(), record.split, camera);
     view.projection = record.projection.as_ref().map(from_rows4);
     let f = &record.files;
@@ -174,33 +163,30 @@ fn read_view(
         view.stokes = Some(stokes);
     }
     if let Some(name) = &f.mask {
-        view.mask = Some(sized_u8(name)?);
+        view.mask = Some(read_sized(&file(name)?, png::read_png_u8, &reference, size)?);
     }
     if let Some(name) = &f.aop {
-        view.aop = Some(sized(name, &|p| exr::read_exr(p, &["AoP"]))?);
+        view.aop = Some(sized(name, |p| exr::read_exr(p, &["AoP"]))?);
     }
     if let Some(name) = &f.dop {
-        view.dop = Some(sized(name, &|p| exr::read_exr(p, &["DoP"]))?);
+        view.dop = Some(sized(name, |p| exr::read_exr(p, &["DoP"]))?);
     }
     if let Some(name) = &f.normal {
-        view.normals = Some(sized(name, &|p| exr::read_exr(p, &["N.X", "N.Y", "N.Z"]))?);
+        view.normals = Some(sized(name, |p| exr::read_exr(p, &["N.X", "N.Y", "N.Z"]))?);
     }
     if let Some(name) = &f.depth {
-        view.depth = Some(sized(name, &|p| exr::read_exr(p, &["Z"]))?);
+        view.depth = Some(sized(name, |p| exr::read_exr(p, &["Z"]))?);
     }
     if let Some(files) = &f.polarizers {
-        let mut images = Vec::with_capacity(4);
-        for name in files {
-            let path = file(name)?;
-            let image = png::read_png_u16(&path)?;
-            check_size(&path, image.size(), &reference, size)?;
-            images.push(image);
-        }
+        let images: Vec<_> = files
+            .iter()
+            .map(|name| read_sized(&file(name)?, png::read_png_u16, &reference, size))
+            .collect::<Result<_>>()?;
         let scale = record.polarizer_scale.unwrap_or(1.0);
         view.polarized = Some(PolarizerImages { scale, images: images.try_into().expect("four polarizer angles") });
     }
     if let Some(name) = &f.preview {
-        view.preview = Some(sized_u8(name)?);
+        view.preview = Some(read_sized(&file(name)?, png::read_png_u8, &reference, size)?);
     }
     Ok(view)
 }

@@ -15,8 +15,8 @@
 //! back as `000`, `001`, ... and every view is a training view (the release's split is its
 //! users' choice). We write 0-based keys and `mask/`.
 
-use super::check_size;
 use super::nersp::{cameras_by_keys, read_camera_arrays, write_cameras};
+use super::{check_size, read_sized};
 use crate::io::{npy, png};
 use crate::layout::{array_from_image, image_from_array};
 use crate::{visualize, Camera, Error, Result, Scene, Split, Stokes, View};
@@ -135,9 +135,7 @@ pub fn read(dir: &Path) -> Result<Scene> {
             view.mask = Some(mask_image);
             let preview = dir.join("image").join(format!("{stem}.png"));
             if preview.is_file() {
-                let image = png::read_png_u8(&preview)?;
-                check_size(&preview, image.size(), path.display(), (w, h))?;
-                view.preview = Some(image);
+                view.preview = Some(read_sized(&preview, png::read_png_u8, path.display(), (w, h))?);
             }
             Ok(view)
         })
