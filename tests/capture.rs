@@ -22,6 +22,7 @@ impl SimulatedCameraProcess {
     fn start(serial: &str, views: usize, extra: &[&str]) -> Self {
         let mut child = Command::new(env!("CARGO_BIN_EXE_rmvp"))
             .args(["simulate-camera", "--serial", serial, "--views", &views.to_string()])
+            .args(["--seed", &rmvp_testkit::test_seed().to_string()])
             .args(extra)
             .stderr(Stdio::piped())
             .spawn()
@@ -147,7 +148,12 @@ fn a_six_view_session_matches_the_renderer_within_the_noise() {
     assert_eq!(manifest.camera.features["ExposureTime"], "20000");
     manifest.verify(&dir).unwrap();
 
-    let scene = SimulatedScene::new(&SimulatorOptions { views: 6, ..SimulatorOptions::default() }).unwrap();
+    let scene = SimulatedScene::new(&SimulatorOptions {
+        views: 6,
+        seed: rmvp_testkit::test_seed(),
+        ..SimulatorOptions::default()
+    })
+    .unwrap();
     for view in &manifest.views {
         let truth = scene.render(view.index);
         let (z, z90, aop) = residuals(&dir.join("views").join(&view.name), &truth);
@@ -223,7 +229,13 @@ fn hdr_brackets_recover_highlights_the_long_exposure_clips() {
     let unit = &manifest.settings.stokes_unit;
     assert!(matches!(unit, StokesUnit::HdrFullScale { shortest_exposure_us: 4000.0, .. }), "{unit}");
 
-    let truth = SimulatedScene::new(&SimulatorOptions { views: 2, ..SimulatorOptions::default() }).unwrap().render(0);
+    let truth = SimulatedScene::new(&SimulatorOptions {
+        views: 2,
+        seed: rmvp_testkit::test_seed(),
+        ..SimulatorOptions::default()
+    })
+    .unwrap()
+    .render(0);
     let measured = read_stokes(&dir.join("views/000/view_stokes.exr")).unwrap();
     // HDR Stokes are in units of the shortest exposure's full scale: compare with the noise-free
     // capture at 4 ms, which clips nowhere.

@@ -46,7 +46,9 @@ static LOOPBACK: std::sync::Mutex<()> = std::sync::Mutex::new(());
 fn capture(dir: &Path, views: usize, setup: &[&str]) {
     let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
     let views = views.to_string();
-    let mut args = vec!["capture", "--simulated", "--object", "lab", "--mode", "turntable", "--dark", "4"];
+    let seed = rmvp_testkit::test_seed().to_string();
+    let mut args = vec!["capture", "--simulated", "--seed", &seed, "--object", "lab", "--mode", "turntable"];
+    args.extend(["--dark", "4"]);
     args.extend(["--average", "4", "--views", &views, "-o", s(dir)]);
     args.extend_from_slice(setup);
     ok(&args);
@@ -62,6 +64,7 @@ fn a_lab_session_becomes_posed_masked_views() {
     let truth = SimulatedScene::new(&SimulatorOptions {
         views: 24,
         setup: SimulatedSetup::Lab(lab_setup()),
+        seed: rmvp_testkit::test_seed(),
         ..SimulatorOptions::default()
     })
     .unwrap();
@@ -271,7 +274,7 @@ fn a_lab_session_becomes_posed_masked_views() {
     }
     let recon = |scene: &Path, out: &Path| {
         let args = ["--threads", "1", "recon", s(scene), "-o", s(out), "--iters", "400", "--mesh-res", "160"];
-        ok(&[&args[..], &["--mesh-only"]].concat());
+        ok(&[&args[..], &["--mesh-only", "--seed", &rmvp_testkit::test_seed().to_string()]].concat());
         Mesh::read(&out.join("mesh.ply")).unwrap()
     };
     let (from_release, from_truth) = (tmp.path().join("recon-release"), tmp.path().join("recon-true"));
@@ -303,7 +306,7 @@ fn a_lab_session_becomes_posed_masked_views() {
 
 /// `mesh` with Gaussian noise of `sigma` on every coordinate.
 fn noisy(mesh: &Mesh, sigma: f64) -> Mesh {
-    let mut rng = rmvp_dataset::rng::Rng::for_pixel(7, 0, 0);
+    let mut rng = rmvp_dataset::rng::Rng::for_pixel(7 + rmvp_testkit::test_seed(), 0, 0);
     let positions = mesh.positions.iter().map(|p| p.map(|v| v + (sigma * rng.normal() as f64) as f32)).collect();
     Mesh { positions, ..mesh.clone() }
 }

@@ -44,7 +44,7 @@ fn camera(spec: &BoardOptions, azimuth: f64, elevation: f64, distance: f64, roll
 
 fn render(object: &Object, camera: &Camera, view: u32) -> Image<u8> {
     let env = EnvMap::uniform([1.0; 3]);
-    let r = render_view(object, &env, camera, Settings { spp: 16, seed: 0 }, view);
+    let r = render_view(object, &env, camera, Settings { spp: 16, seed: rmvp_testkit::test_seed() }, view);
     preview(&r.stokes.s0)
 }
 

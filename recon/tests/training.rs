@@ -38,7 +38,8 @@ fn sphere_scene() -> Scene {
     let mut scene = Scene::new();
     for (i, eye) in (Rig::Sphere { views: 6 }).eyes(distance, 3).into_iter().enumerate() {
         let camera = look_at(k, eye, Vector3::zeros(), Vector3::y(), size, size);
-        let view = render_view(&object, &EnvMap::procedural(), &camera, Settings { spp: 8, seed: 1 }, i as u32);
+        let settings = Settings { spp: 8, seed: 1 + rmvp_testkit::test_seed() };
+        let view = render_view(&object, &EnvMap::procedural(), &camera, settings, i as u32);
         scene.views.push(view.into_view(format!("{i:03}"), Split::Train, camera, 1.0));
     }
     scene
@@ -58,6 +59,7 @@ fn analytic_sphere_converges_to_the_sphere() {
     // 0.15 inside, on the sphere's underside).
     let mut config = small_config(300);
     config.model.initial_radius = neus_initial_radius();
+    config.seed += rmvp_testkit::test_seed();
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     let mut trainer = Trainer::new(config, set);
     while trainer.iteration < trainer.config.iterations {

@@ -90,6 +90,7 @@ pub fn run(args: Args) -> Result<()> {
             views: args.views,
             mesh: args.mesh.clone(),
             setup: args.scene.setup(),
+            seed: args.scene.seed,
             description: args.description.clone(),
             ..SimulatorOptions::default()
         };
@@ -194,6 +195,9 @@ pub struct SetupArgs {
     /// Lab setup: the empty lab (background plates at the same turntable positions).
     #[arg(long)]
     pub no_object: bool,
+    /// Seed of the simulated camera's views and noise.
+    #[arg(long, default_value_t = SimulatorOptions::default().seed)]
+    pub seed: u64,
 }
 
 impl SetupArgs {
@@ -239,9 +243,6 @@ pub struct SimulateCameraArgs {
     /// No shot or read noise (every frame of a pose identical; fastest).
     #[arg(long)]
     pub noise_free: bool,
-    /// Seed of the views and the noise.
-    #[arg(long, default_value_t = SimulatorOptions::default().seed)]
-    pub seed: u64,
     /// Fraction of stream packets to drop on purpose (frames then arrive incomplete).
     #[arg(long, default_value_t = SimulatorOptions::default().lost_packet_ratio)]
     pub lost_packets: f64,
@@ -295,7 +296,7 @@ pub fn simulate_camera(args: SimulateCameraArgs) -> Result<()> {
         mesh: args.mesh,
         views: args.views,
         spp: args.spp,
-        seed: args.seed,
+        seed: args.scene.seed,
         noise: !args.noise_free,
         lost_packet_ratio: args.lost_packets,
         setup: args.scene.setup(),
