@@ -18,13 +18,13 @@ mkdir -p "$out"
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 # package, test binary, test name filter, the pattern of the lines that carry its figures
 runs=(
-  "rmvp-recon training analytic_sphere_converges ^sphere:|^outputs:|^surface shading"
-  "rmvp-recon fixture the_fast_preset ^seed"
-  "rmvp-align icp known_similarity|far_starts|cropped_noisy ^alignment error"
-  "rmvp-calib board rendered_boards ^corner error|deviations"
-  "rmvp capture a_six_view|hdr_brackets ^view|^HDR"
+  "rmvp-recon training analytic_sphere_converges sphere:|outputs:|surface shading"
+  "rmvp-recon fixture the_fast_preset seed [0-9]+:"
+  "rmvp-align icp known_similarity|far_starts|cropped_noisy alignment error"
+  "rmvp-calib board rendered_boards corner error|deviations"
+  "rmvp capture a_six_view|hdr_brackets view [0-9]|HDR S0"
 )
-$lab && runs=("rmvp lab a_lab_session ^calibrated|^charuco|^masks|^colmap|^scan aligned|^release ground|^normal MAE")
+$lab && runs=("rmvp lab a_lab_session calibrated|charuco poses|masks: IoU|colmap poses|scan aligned|release ground|normal MAE over")
 for seed in "${seeds[@]}"; do
   for run in "${runs[@]}"; do
     read -r package binary filter pattern <<<"$run"
@@ -32,6 +32,7 @@ for seed in "${seeds[@]}"; do
     # Each test binary's tests one at a time, so that their lines do not interleave.
     cargo test --release -p "$package" --test "$binary" -- --test-threads 1 --nocapture \
       $(tr '|' ' ' <<<"$filter") >"$log" 2>&1 || { echo "seed $seed: $binary failed (see $log)"; continue; }
-    grep -E "$pattern" "$log" | sed "s/^/seed $seed  $binary  /"
+    # A test's first line follows libtest's "test NAME ... " on the same line.
+    grep -oE "($pattern).*" "$log" | sed "s/^/seed $seed  $binary  /" || true
   done
 done
