@@ -30,7 +30,7 @@ for seed in "${seeds[@]}"; do
     read -r package binary filter pattern <<<"$run"
     log="$out/$binary-$seed.log"
     # Each test binary's tests one at a time, so that their lines do not interleave.
-    cargo test --release -p "$package" --test "$binary" -- --test-threads 1 --nocapture \
+    RMVP_TEST_SEED=$seed cargo test --release -p "$package" --test "$binary" -- --test-threads 1 --nocapture \
       $(tr '|' ' ' <<<"$filter") >"$log" 2>&1 || { echo "seed $seed: $binary failed (see $log)"; continue; }
     # A test's first line follows libtest's "test NAME ... " on the same line.
     grep -oE "($pattern).*" "$log" | sed "s/^/seed $seed  $binary  /" || true
