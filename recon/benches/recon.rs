@@ -1,9 +1,13 @@
 //! Training step time of each preset on the spot fixture (6 views, 128x128): milliseconds per
 //! iteration, rays and samples per second, with 1 and 2 threads. Run with
 //! `cargo bench -p rmvp-recon --bench recon` (`RMVP_BENCH_STEPS` steps per measurement,
-//! `RMVP_BENCH_PRESETS=fast,dense,paper`).
+//! `RMVP_BENCH_PRESETS=fast,dense,paper`). By default each preset's model is at its start, the
+//! iteration set to `RMVP_BENCH_AT`; `RMVP_BENCH_CHECKPOINT=checkpoint.bin` measures instead
+//! a trained model (a `rmvp recon` run's checkpoint of the spot fixture, its own options), once
+//! as trained and once rendering every sample (`min_weight` 0).
 
 use rmvp_dataset::layout::read_scene;
+use rmvp_recon::checkpoint;
 use rmvp_recon::data::TrainingSet;
 use rmvp_recon::presets::{self, Preset};
 use rmvp_recon::train::Trainer;
@@ -17,6 +21,28 @@ fn main() {
     let steps: u32 = std::env::var("RMVP_BENCH_STEPS").ok().and_then(|s| s.parse().ok()).unwrap_or(20);
     let presets = std::env::var("RMVP_BENCH_PRESETS").unwrap_or_else(|_| "fast,paper".into());
     println!("recon benchmark: spot fixture, 6 views 128x128, median step over {steps} steps after warm-up");
+    if let Some(path) = std::env::var_os("RMVP_BENCH_CHECKPOINT") {
+        let path = std::path::PathBuf::from(path);
+        let recorded = checkpoint::recorded_config(&path).expect("checkpoint");
+        for min_weight in [None, Some(0.0)] {
+            for threads in [1, 2] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+                pool.install(|| {
+                    let mut config = recorded.clone();
+                    if let Some(w) = min_weight {
+                        config.sampling.min_weight = w;
+                    }
+                    let set = TrainingSet::from_scene(&scene, config.margin).expect("training set");
+                    let mut trainer = checkpoint::load(&path, set, &recorded, None).expect("checkpoint");
+                    trainer.config = config;
+                    let (ms, samples) = measure(&mut trainer, 2, steps, true);
+                    let label = if min_weight.is_some() { "every sample" } else { "as trained" };
+                    report(&format!("trained, {label}"), threads, ms, trainer.config.batch_rays, samples);
+                });
+            }
+        }
+        return;
+    }
     for name in presets.split(',') {
         let preset = match name {
             "paper" => Preset::Paper,
@@ -30,31 +56,44 @@ fn main() {
                 let set = TrainingSet::from_scene(&scene, config.margin).expect("training set");
                 let mut trainer = Trainer::new(config, set);
                 // Past the diffuse-only warm-up, so that every loss and network runs.
-                trainer.iteration = std::env::var("RMVP_BENCH_AT").ok().and_then(|s| s.parse().ok()).unwrap_or(trainer.config.diffuse_only);
-                let warm = if preset == Preset::Paper { 1 } else { 3 };
-                for _ in 0..warm {
-                    trainer.step();
-                }
-                let mut times = Vec::new();
-                let mut samples = 0;
-                let n = if preset == Preset::Paper { steps.div_ceil(5) } else { steps };
-                for _ in 0..n {
-                    let start = Instant::now();
-                    let r = trainer.step();
-                    times.push(start.elapsed().as_secs_f64());
-                    samples = r.samples;
-                }
-                times.sort_by(f64::total_cmp);
-                let t = times[times.len() / 2];
-                println!(
-                    "{name:>5} {threads} thread(s): {:8.1} ms/step  {:9.0} rays/s  {:10.0} samples/s  (batch {} rays, {} samples, 7 field evaluations each)",
-                    t * 1e3,
-                    trainer.config.batch_rays as f64 / t,
-                    samples as f64 / t,
-                    trainer.config.batch_rays,
-                    samples
-                );
+                trainer.iteration = std::env::var("RMVP_BENCH_AT")
+                    .ok()
+                    .and_then(|s| s.parse().ok())
+                    .unwrap_or(trainer.config.diffuse_only);
+                let (warm, n) = if preset == Preset::Paper { (1, steps.div_ceil(5)) } else { (3, steps) };
+                let (ms, samples) = measure(&mut trainer, warm, n, false);
+                report(name, threads, ms, trainer.config.batch_rays, samples);
             });
         }
     }
+}
+
+/// The median milliseconds of `n` steps after `warm` steps, and the samples of the last; with
+/// `restore`, each step starts from the same parameters (a trained model stays as trained).
+fn measure(trainer: &mut Trainer, warm: u32, n: u32, restore: bool) -> (f64, usize) {
+    let start_params = trainer.params.clone();
+    for _ in 0..warm {
+        trainer.step();
+    }
+    let (mut times, mut samples) = (Vec::new(), 0);
+    for _ in 0..n {
+        if restore {
+            trainer.params.clone_from(&start_params);
+        }
+        let start = Instant::now();
+        samples = trainer.step().samples;
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    times.sort_by(f64::total_cmp);
+    (times[times.len() / 2], samples)
+}
+
+/// One line of the table.
+fn report(label: &str, threads: usize, ms: f64, rays: usize, samples: usize) {
+    println!(
+        "{label:>24} {threads} thread(s): {ms:8.1} ms/step  {:9.0} rays/s  {:10.0} samples/s  ({rays} rays, {samples} samples, {:.1} a ray)",
+        rays as f64 / ms * 1e3,
+        samples as f64 / ms * 1e3,
+        samples as f64 / rays as f64
+    );
 }

@@ -91,6 +91,11 @@ pub fn recorded_options(path: &Path) -> Result<Option<ReconOptions>> {
     Ok(checkpoint_header(path)?.0.options)
 }
 
+/// The training configuration a checkpoint's run trained with.
+pub fn recorded_config(path: &Path) -> Result<TrainConfig> {
+    Ok(checkpoint_header(path)?.0.config)
+}
+
 /// The most bytes a checkpoint's header (JSON: the configuration and options) may have.
 const MAX_CHECKPOINT_HEADER_BYTES: u64 = 1 << 20;
 

@@ -57,6 +57,11 @@ pub const TANGENT_ROBUST_ANGLE: f32 = 20.0;
 /// `docs/benchmarks.md`); NeuS starts from 0.5.
 pub const FAST_INITIAL_RADIUS: f32 = 0.2;
 
+/// The fast and dense presets' least weight of a rendered sample
+/// ([`crate::volume::weighted_samples`]): the samples in empty space and behind the surface are
+/// left out of a step (`docs/benchmarks.md`, a training step).
+pub const MIN_SAMPLE_WEIGHT: f32 = 1e-4;
+
 /// Share of background rays in a batch.
 pub const BACKGROUND_SHARE: f32 = 0.25;
 
@@ -107,7 +112,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
     let (batch_rays, sampling, adam) = match preset {
         Preset::Paper => (
             512,
-            Sampling { coarse: 64, fine: 64, steps: 4 },
+            Sampling { coarse: 64, fine: 64, steps: 4, min_weight: 0.0 },
             AdamConfig {
                 lr_network: 5e-4,
                 lr_grid: 0.0,
@@ -119,7 +124,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         ),
         Preset::Fast | Preset::Dense => (
             if preset == Preset::Dense { 512 } else { 256 },
-            Sampling { coarse: 32, fine: 32, steps: 4 },
+            Sampling { coarse: 32, fine: 32, steps: 4, min_weight: MIN_SAMPLE_WEIGHT },
             AdamConfig {
                 lr_network: 2e-3,
                 lr_grid: 1e-2,

@@ -11,7 +11,8 @@ use crate::data::TrainingSet;
 use crate::geometric::{curved_robust_scale, robust_scale, tangent_loss, tangents};
 use crate::losses::{curvature, eikonal, l1, mask_bce, PerTerm, Term};
 use crate::model::{GridGradient, Model, STOKES};
-use crate::volume::{sample_depths, Forward, RayGrad};
+use crate::ray::Ray;
+use crate::volume::{weighted_samples, Forward, RayGrad};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -63,7 +64,7 @@ pub struct CpuStep;
 /// Rays per chunk of a batch; chunks run in parallel and are summed in order.
 const CHUNK_RAYS: usize = 32;
 
-/// The losses' normalisers: rays, rays inside the masks, samples.
+/// The losses' normalisers: rays, rays inside the masks, samples taken.
 struct Norms {
     rays: f32,
     masked: f32,
@@ -97,17 +98,16 @@ impl StepCompute for CpuStep {
     ) -> StepGradient {
         let rays = &batch.rays;
         let masked_total = rays.iter().filter(|&&(v, p)| set.views[v as usize].mask[p as usize]).count().max(1);
-        let samples_per_ray = config.sampling.coarse + config.sampling.fine;
-        let norm = Norms {
-            rays: rays.len() as f32,
-            masked: masked_total as f32,
-            samples: (rays.len() * samples_per_ray) as f32,
-        };
-        let step = Step { model, params, set, config, batch, norm };
         let chunks: Vec<Range<usize>> =
             (0..rays.len()).step_by(CHUNK_RAYS).map(|s| s..(s + CHUNK_RAYS).min(rays.len())).collect();
+        let sampled: Vec<Sampled> =
+            chunks.par_iter().map(|range| sample(model, params, set, config, batch, range)).collect();
+        // The regularisers are means over the samples taken (as NeuS2's and instant-nsr-pl's).
+        let taken: usize = sampled.iter().map(|s| s.depths.iter().map(Vec::len).sum::<usize>()).sum();
+        let norm = Norms { rays: rays.len() as f32, masked: masked_total as f32, samples: taken.max(1) as f32 };
+        let step = Step { model, params, set, config, batch, norm };
         let results: Vec<(Vec<f32>, GridGradient, ChunkSums)> =
-            chunks.into_par_iter().map(|range| step.chunk(range)).collect();
+            chunks.into_par_iter().zip(sampled).map(|(range, sampled)| step.chunk(range, sampled)).collect();
         // Summed in chunk order (the networks') and level by level in chunk order (the hash
         // grid's): the same step whatever the number of threads.
         let mut grad = vec![0f32; params.len()];
@@ -125,15 +125,35 @@ impl StepCompute for CpuStep {
     }
 }
 
+/// A chunk's rays and the depths a step renders on them.
+struct Sampled {
+    rays: Vec<Ray>,
+    depths: Vec<Vec<f32>>,
+}
+
+/// The rays of `batch` in `range` and their [`weighted_samples`].
+fn sample(
+    model: &Model,
+    params: &[f32],
+    set: &TrainingSet,
+    config: &TrainConfig,
+    batch: &Batch,
+    range: &Range<usize>,
+) -> Sampled {
+    let rays: Vec<Ray> = batch.rays[range.clone()].iter().map(|&(v, p)| set.ray(v, p)).collect();
+    let jitter = &batch.jitter[range.clone()];
+    let depths = weighted_samples(model, params, &batch.level_weight, &rays, config.sampling, jitter);
+    Sampled { rays, depths }
+}
+
 impl Step<'_> {
-    /// The gradient and losses of the batch's rays in `range`.
-    fn chunk(&self, range: Range<usize>) -> (Vec<f32>, GridGradient, ChunkSums) {
+    /// The gradient and losses of the batch's rays in `range`, sampled at `sampled`.
+    fn chunk(&self, range: Range<usize>, sampled: Sampled) -> (Vec<f32>, GridGradient, ChunkSums) {
         let (set, model, params, config) = (self.set, self.model, self.params, self.config);
-        let (batch, jitter) = (&self.batch.rays[range.clone()], &self.batch.jitter[range]);
+        let batch = &self.batch.rays[range];
         let (level_weight, fd_step, warm) = (&self.batch.level_weight[..], self.batch.fd_step, self.batch.warm);
         let (use_geometric, norm) = (self.batch.use_geometric, &self.norm);
-        let rays: Vec<_> = batch.iter().map(|&(v, p)| set.ray(v, p)).collect();
-        let depths = sample_depths(model, params, level_weight, &rays, config.sampling, jitter);
+        let Sampled { rays, depths } = sampled;
         let fwd = Forward::run(model, params, level_weight, &rays, &depths, fd_step, warm);
         let w = &config.weights;
         let mut sums = ChunkSums { samples: fwd.samples(), ..Default::default() };

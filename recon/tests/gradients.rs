@@ -7,11 +7,11 @@ use rmvp_dataset::rng::Rng;
 use rmvp_recon::engine::encoding::{ide, IDE_WIDTH};
 use rmvp_recon::engine::vector::cross;
 use rmvp_recon::engine::{Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
-use rmvp_recon::model::{Model, ShadingCache, ShadingInput, STOKES};
+use rmvp_recon::model::{Model, ShadingCache, ShadingInput, STOKES, VARIANCE_SCALE};
 use rmvp_recon::pbrdf::{degrees, double_azimuth};
 use rmvp_recon::presets::{self, Preset};
 use rmvp_recon::ray::Ray;
-use rmvp_recon::volume::{sample_depths, Forward, RayGrad, Sampling};
+use rmvp_recon::volume::{sample_depths, weighted_samples, Forward, RayGrad, Sampling};
 
 /// Compare `analytic` with central differences of `loss` on `indices` of `params`; the
 /// relative error of the whole vector must stay under `tolerance`.
@@ -294,9 +294,36 @@ fn volume_rendering_end_to_end() {
     let (model, params) = small_model();
     let rays = test_rays();
     let lw = [1.0, 1.0, 1.0, 0.5];
-    let sampling = Sampling { coarse: 12, fine: 8, steps: 2 };
+    let sampling = Sampling { coarse: 12, fine: 8, steps: 2, min_weight: 0.0 };
     let depths = sample_depths(&model, &params, &lw, &rays, sampling, &[0.5; 5]);
     assert!(depths.iter().all(|d| d.len() == 20 && d.windows(2).all(|w| w[0] <= w[1])));
+    check_volume_rendering("volume rendering", &model, &params, &lw, &rays, &depths);
+}
+
+#[test]
+fn volume_rendering_at_the_samples_that_carry_weight() {
+    // A training step's samples: some left out on every ray, and a ray past the object left
+    // with none.
+    let (model, mut params) = small_model();
+    // A sharper surface than the start's (inv_s 100, not 20), as after some training.
+    params[model.variance] = 100f32.ln() / VARIANCE_SCALE;
+    let mut rays = test_rays();
+    let past = {
+        let (o, d) = ([0.6f32, 0.6, -2.0], [0.0f32, 0.0, 1.0]);
+        Ray::clipped(o, d, [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]).expect("crosses the unit sphere")
+    };
+    rays.push(past);
+    let lw = [1.0, 1.0, 1.0, 0.5];
+    let sampling = Sampling { coarse: 12, fine: 8, steps: 2, min_weight: 0.01 };
+    let depths = weighted_samples(&model, &params, &lw, &rays, sampling, &[0.5; 6]);
+    let counts: Vec<usize> = depths.iter().map(Vec::len).collect();
+    assert!(counts[..5].iter().all(|&c| c > 0 && c < 20) && counts[5] == 0, "samples a ray {counts:?}");
+    check_volume_rendering("volume rendering at weighted samples", &model, &params, &lw, &rays, &depths);
+}
+
+/// The gradient of a random weighting of every output of a forward pass over `rays` at
+/// `depths` against finite differences.
+fn check_volume_rendering(label: &str, model: &Model, params: &[f32], lw: &[f32], rays: &[Ray], depths: &[Vec<f32>]) {
     let grads: Vec<RayGrad> = (0..rays.len())
         .map(|r| {
             let w = random(13, 30 + r as u64, 1.0);
@@ -307,22 +334,22 @@ fn volume_rendering_end_to_end() {
     let d_gradients = random(3 * n, 40, 0.5);
     let d_laplacians = random(n, 42, 1e-3);
     let loss = |p: &[f32]| {
-        let f = Forward::run(&model, p, &lw, &rays, &depths, 0.02, false);
+        let f = Forward::run(model, p, lw, rays, depths, 0.02, false);
         let mut l = 0f64;
         for (o, g) in f.rays.iter().zip(&grads) {
             l += weighted(&o.stokes, &g.stokes) + (o.opacity * g.opacity) as f64 + weighted(&o.normal, &g.normal);
         }
         l + weighted(&f.field.gradients, &d_gradients) + weighted(&f.field.laplacians, &d_laplacians)
     };
-    let f = Forward::run(&model, &params, &lw, &rays, &depths, 0.02, false);
+    let f = Forward::run(model, params, lw, rays, depths, 0.02, false);
     assert!(f.rays.iter().any(|o| o.opacity > 0.1), "rays should cross the initial sphere");
     let mut grad = vec![0f32; params.len()];
-    let grid = f.backward(&model, &params, &grads, &d_gradients, &d_laplacians, &mut grad);
-    model.field.add_grid_gradients(&[&grid], &lw, &mut grad);
+    let grid = f.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
+    model.field.add_grid_gradients(&[&grid], lw, &mut grad);
     let nonzero: Vec<usize> = (0..params.len()).filter(|&i| grad[i] != 0.0).collect();
     let mut indices = pick(nonzero.len(), 400, 41).into_iter().map(|k| nonzero[k]).collect::<Vec<_>>();
     indices.push(model.variance);
-    check("volume rendering", &params, &grad, &indices, 1e-3, 3e-2, loss);
+    check(label, params, &grad, &indices, 1e-3, 3e-2, loss);
 }
 
 #[test]
