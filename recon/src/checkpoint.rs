@@ -3,6 +3,7 @@
 //! bit for bit. A header is compared with the run before anything is built from it.
 
 use crate::data::TrainingSet;
+use crate::occupancy::OccupancyGrid;
 use crate::options::ReconOptions;
 use crate::train::{TrainConfig, Trainer};
 use crate::{Error, Result};
@@ -10,9 +11,10 @@ use rmvp_dataset::io::atomic::write_bytes_atomically;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
-/// Save `trainer`'s parameters, optimiser state and iteration to `path` (atomically), with the
-/// options the run was started with where the caller gives them.
+/// Save `trainer`'s parameters, optimiser state, occupancy grid and iteration to `path`
+/// (atomically), with the options the run was started with where the caller gives them.
 pub fn save(trainer: &Trainer, options: Option<&ReconOptions>, path: &Path) -> Result<()> {
+    let occupancy = trainer.occupancy().map_or(&[][..], OccupancyGrid::values);
     let header = serde_json::to_vec(&CheckpointHeader {
         format: CHECKPOINT_FORMAT.into(),
         config: trainer.config.clone(),
@@ -20,13 +22,14 @@ pub fn save(trainer: &Trainer, options: Option<&ReconOptions>, path: &Path) -> R
         iteration: trainer.iteration,
         adam_steps: trainer.adam.steps,
         parameters: trainer.params.len(),
+        occupancy: occupancy.len(),
     })
     .expect("plain data");
-    let mut bytes = Vec::with_capacity(16 + header.len() + 12 * trainer.params.len());
+    let mut bytes = Vec::with_capacity(16 + header.len() + 12 * trainer.params.len() + 4 * occupancy.len());
     bytes.extend_from_slice(CHECKPOINT_MAGIC);
     bytes.extend_from_slice(&(header.len() as u64).to_le_bytes());
     bytes.extend_from_slice(&header);
-    for v in [&trainer.params, &trainer.adam.m, &trainer.adam.v] {
+    for v in [&trainer.params[..], &trainer.adam.m, &trainer.adam.v, occupancy] {
         for x in v.iter() {
             bytes.extend_from_slice(&x.to_le_bytes());
         }
@@ -49,9 +52,14 @@ pub fn load(path: &Path, set: TrainingSet, config: &TrainConfig, options: Option
         let changed = if changed.is_empty() { "the training configuration".into() } else { changed.join(", ") };
         return Err(Error::CheckpointSettings { path: path.to_path_buf(), changed });
     }
-    // The file's size against its header's count before anything is read or built.
+    // The run samples through an occupancy grid exactly when it renders only weighted samples.
+    let occupancy = if config.sampling.min_weight > 0.0 { OccupancyGrid::VALUES } else { 0 };
+    if header.occupancy != occupancy {
+        return Err(bad(&format!("{} occupancy grid values, the run has {occupancy}", header.occupancy)));
+    }
+    // The file's size against its header's counts before anything is read or built.
     let body = file_len - 16 - len as u64;
-    let expected = 12u64.saturating_mul(header.parameters as u64);
+    let expected = 12u64.saturating_mul(header.parameters as u64) + 4 * occupancy as u64;
     if body != expected {
         let state = if body < expected { "truncated" } else { "too long" };
         return Err(bad(&format!("{state}: {body} bytes of parameters and optimiser state, expected {expected}")));
@@ -68,7 +76,7 @@ pub fn load(path: &Path, set: TrainingSet, config: &TrainConfig, options: Option
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes(c.try_into().expect("4 bytes")))
         .collect();
-    if floats.len() != 3 * n {
+    if floats.len() != 3 * n + occupancy {
         return Err(bad("changed while read"));
     }
     if floats[..n].iter().any(|p| !p.is_finite()) {
@@ -76,15 +84,19 @@ pub fn load(path: &Path, set: TrainingSet, config: &TrainConfig, options: Option
     }
     let mut adam = trainer.adam.clone();
     adam.m = floats[n..2 * n].to_vec();
-    adam.v = floats[2 * n..].to_vec();
+    adam.v = floats[2 * n..3 * n].to_vec();
     adam.steps = header.adam_steps;
-    trainer.restore(floats[..n].to_vec(), adam, header.iteration);
+    let grid = OccupancyGrid::from_values(&floats[3 * n..]);
+    if grid.as_ref().is_some_and(|g| g.values().iter().any(|v| !v.is_finite())) {
+        return Err(bad("non-finite occupancy grid"));
+    }
+    trainer.restore(floats[..n].to_vec(), adam, header.iteration, grid);
     Ok(trainer)
 }
 
 const CHECKPOINT_MAGIC: &[u8; 8] = b"RMVPCKPT";
-/// The checkpoint's format: 2 since the hash grid's tables come after the networks.
-const CHECKPOINT_FORMAT: &str = "rmvp-recon-checkpoint-2";
+/// The checkpoint's format: 3 since the occupancy grid follows the optimiser state.
+const CHECKPOINT_FORMAT: &str = "rmvp-recon-checkpoint-3";
 
 /// The options a checkpoint's run was started with (`None` for a run started without them).
 pub fn recorded_options(path: &Path) -> Result<Option<ReconOptions>> {
@@ -136,4 +148,7 @@ struct CheckpointHeader {
     iteration: u32,
     adam_steps: u32,
     parameters: usize,
+    /// Values of the occupancy grid after the optimiser state (0: none).
+    #[serde(default)]
+    occupancy: usize,
 }

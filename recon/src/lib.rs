@@ -5,7 +5,8 @@
 //!
 //! - [`engine`]: flat parameters, dense networks, hash grid, encodings, Adam (hand-written
 //!   backward passes), vector helpers; [`pbrdf`]: Fresnel degrees of polarization and azimuths;
-//! - [`model`]: the SDF field, the radiance networks and the specular tilt;
+//! - [`model`]: the SDF field, the radiance networks and the specular tilt; [`occupancy`]: the
+//!   SDF on a coarse grid, where sampling skips empty space;
 //! - rendering: [`ray`], [`samples`] (the field at sample points), [`volume`] (NeuS sampling,
 //!   shading and compositing), [`trace`] (sphere tracing of the SDF);
 //! - [`data`]: the training set in the unit sphere; [`geometric`]: the AoP tangent-space loss
@@ -33,6 +34,7 @@ pub mod extract;
 pub mod geometric;
 pub mod losses;
 pub mod model;
+pub mod occupancy;
 pub mod options;
 pub mod output;
 pub mod pbrdf;

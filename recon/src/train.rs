@@ -11,9 +11,11 @@ use crate::data::TrainingSet;
 use crate::engine::Adam;
 use crate::losses::PerTerm;
 use crate::model::Model;
+use crate::occupancy::{OccupancyGrid, REFRESH_EVERY};
 use crate::step::{Batch, CpuStep, StepCompute, StepGradient};
 use rmvp_dataset::rng::Rng;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// One line of the loss log.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
@@ -86,6 +88,10 @@ pub struct Trainer {
     bad_steps: u32,
     /// The last state known to be finite (every 100 iterations): (params, adam, iteration).
     safe: (Vec<f32>, Adam, u32),
+    /// The SDF on a coarse grid for the steps' sampling, refreshed every
+    /// [`REFRESH_EVERY`](crate::occupancy::REFRESH_EVERY) iterations (None where every sample
+    /// is rendered).
+    occupancy: Option<Arc<OccupancyGrid>>,
 }
 
 impl Trainer {
@@ -97,7 +103,11 @@ impl Trainer {
         let params = model.init(config.seed);
         let adam = Adam::new(params.len());
         let safe = (params.clone(), adam.clone(), 0);
-        Self { config, model, set, params, adam, iteration: 0, compute: Box::new(CpuStep), bad_steps: 0, safe }
+        let compute = Box::new(CpuStep);
+        let mut trainer =
+            Self { config, model, set, params, adam, iteration: 0, compute, bad_steps: 0, safe, occupancy: None };
+        trainer.refresh_occupancy();
+        trainer
     }
 
     /// The same run with its steps computed by `compute` (the CPU's [`CpuStep`] by default).
@@ -130,6 +140,9 @@ impl Trainer {
     /// row roll back to the last safe state), which the report's `event` says.
     pub fn step(&mut self) -> StepReport {
         let it = self.iteration;
+        if it > 0 && it.is_multiple_of(REFRESH_EVERY) {
+            self.refresh_occupancy();
+        }
         let mut rng = Rng::for_pixel(self.config.seed, it, 0);
         let set = &self.set;
         let from_background = if set.background.is_empty() {
@@ -148,7 +161,8 @@ impl Trainer {
         let fd_step = self.fd_step(&level_weight);
         let warm = self.warming_up();
         let use_geometric = self.config.geometric && !warm;
-        let batch = Batch { rays: batch, jitter, level_weight, fd_step, warm, use_geometric };
+        let occupancy = self.occupancy.clone();
+        let batch = Batch { rays: batch, jitter, level_weight, fd_step, warm, use_geometric, occupancy };
         let StepGradient { grad, losses, samples } =
             self.compute.gradient(&self.model, &self.params, &self.set, &self.config, &batch);
         let w = &self.config.weights;
@@ -169,6 +183,7 @@ impl Trainer {
                 let (params, adam, at) = self.safe.clone();
                 self.params = params;
                 self.adam = adam;
+                self.refresh_occupancy();
                 report.event = Some(StepEvent::RolledBack { to: at });
                 self.bad_steps = 0;
             } else {
@@ -188,10 +203,23 @@ impl Trainer {
 
     /// Restore the state a checkpoint recorded: parameters, optimiser state and the next
     /// iteration (the last safe state too).
-    pub(crate) fn restore(&mut self, params: Vec<f32>, adam: Adam, iteration: u32) {
+    pub(crate) fn restore(&mut self, params: Vec<f32>, adam: Adam, iteration: u32, occupancy: Option<OccupancyGrid>) {
         self.params = params;
         self.adam = adam;
         self.iteration = iteration;
         self.safe = (self.params.clone(), self.adam.clone(), self.iteration);
+        self.occupancy = occupancy.map(Arc::new);
+    }
+
+    /// The occupancy grid the steps sample through (None where every sample is rendered).
+    pub fn occupancy(&self) -> Option<&OccupancyGrid> {
+        self.occupancy.as_deref()
+    }
+
+    /// Build the occupancy grid from the current parameters (none where every sample is
+    /// rendered): at the start, every [`REFRESH_EVERY`] iterations and after a roll-back.
+    fn refresh_occupancy(&mut self) {
+        self.occupancy = (self.config.sampling.min_weight > 0.0)
+            .then(|| Arc::new(OccupancyGrid::new(&self.model, &self.params, &self.level_weight())));
     }
 }

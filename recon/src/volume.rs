@@ -6,6 +6,7 @@
 
 use crate::engine::vector::sigmoid;
 use crate::model::{GridGradient, Model, ShadingCache, ShadingInput, STOKES, VARIANCE_SCALE};
+use crate::occupancy::OccupancyGrid;
 use crate::ray::Ray;
 use crate::samples::{FieldGrad, FieldSamples};
 
@@ -35,7 +36,7 @@ pub fn sample_depths(
     sampling: Sampling,
     jitter: &[f32],
 ) -> Vec<Vec<f32>> {
-    depths_and_sdf(model, params, level_weight, rays, sampling, jitter).0
+    depths_and_sdf(model, params, level_weight, rays, sampling, jitter, None).0
 }
 
 /// The depths of [`sample_depths`] that a training step renders: on each ray, both ends of
@@ -45,6 +46,11 @@ pub fn sample_depths(
 /// The others lie in empty space before the surface or deep behind it: leaving them out
 /// changes a ray's composited values by less than `min_weight` per sample left out, and the
 /// gradient they would have had is as small. A ray may keep no sample (its opacity is then 0).
+///
+/// With `occupancy`, the SDF at a sample where the grid shows the surface to be far is the
+/// grid's, and a ray whose uniform samples all lie there is not up-sampled: nothing near it
+/// could carry weight.
+#[allow(clippy::too_many_arguments)]
 pub fn weighted_samples(
     model: &Model,
     params: &[f32],
@@ -52,8 +58,9 @@ pub fn weighted_samples(
     rays: &[Ray],
     sampling: Sampling,
     jitter: &[f32],
+    occupancy: Option<&OccupancyGrid>,
 ) -> Vec<Vec<f32>> {
-    let (depths, sdf) = depths_and_sdf(model, params, level_weight, rays, sampling, jitter);
+    let (depths, sdf) = depths_and_sdf(model, params, level_weight, rays, sampling, jitter, occupancy);
     if sampling.min_weight <= 0.0 {
         return depths;
     }
@@ -89,7 +96,8 @@ fn carrying_weight(sdf: &[f32], inv_s: f32, min_weight: f32) -> Vec<bool> {
     keep
 }
 
-/// The depths of [`sample_depths`] and the SDF at them.
+/// The depths of [`sample_depths`] and the SDF at them, read from `occupancy` where it shows
+/// the surface to be far (see [`weighted_samples`]).
 fn depths_and_sdf(
     model: &Model,
     params: &[f32],
@@ -97,6 +105,7 @@ fn depths_and_sdf(
     rays: &[Ray],
     sampling: Sampling,
     jitter: &[f32],
+    occupancy: Option<&OccupancyGrid>,
 ) -> (Vec<Vec<f32>>, Vec<Vec<f32>>) {
     let mut depths: Vec<Vec<f32>> = rays
         .iter()
@@ -106,11 +115,26 @@ fn depths_and_sdf(
             (0..sampling.coarse).map(|k| ray.near + step * (k as f32 + j)).collect()
         })
         .collect();
-    let eval = |pts: Vec<f32>| model.field.sdf(params, &pts, level_weight);
-    let mut sdfs: Vec<Vec<f32>> = {
+    // The SDF at points (n x 3): the grid's where it stands in, the networks' elsewhere; and
+    // whether each came from the grid.
+    let eval = |pts: Vec<f32>| -> (Vec<f32>, Vec<bool>) {
+        let Some(grid) = occupancy else {
+            let n = pts.len() / 3;
+            return (model.field.sdf(params, &pts, level_weight), vec![false; n]);
+        };
+        let far: Vec<Option<f32>> = pts.chunks_exact(3).map(|p| grid.far_sdf([p[0], p[1], p[2]])).collect();
+        let near: Vec<f32> =
+            pts.chunks_exact(3).zip(&far).filter(|(_, f)| f.is_none()).flat_map(|(p, _)| p.to_vec()).collect();
+        let mut evaluated = model.field.sdf(params, &near, level_weight).into_iter();
+        let sdf = far.iter().map(|f| f.unwrap_or_else(|| evaluated.next().expect("one a near point"))).collect();
+        (sdf, far.iter().map(Option::is_some).collect())
+    };
+    let (mut sdfs, empty_rays): (Vec<Vec<f32>>, Vec<bool>) = {
         let pts: Vec<f32> = rays.iter().zip(&depths).flat_map(|(r, ts)| ts.iter().flat_map(|&t| r.at(t))).collect();
-        let flat = eval(pts);
-        split_like(&flat, &depths)
+        let (flat, from_grid) = eval(pts);
+        // A ray whose uniform samples all lie where the surface is far is not up-sampled.
+        let empty = split_like(&from_grid, &depths).iter().map(|g| g.iter().all(|&f| f)).collect();
+        (split_like(&flat, &depths), empty)
     };
     if sampling.steps == 0 || sampling.fine == 0 {
         return (depths, sdfs);
@@ -119,9 +143,14 @@ fn depths_and_sdf(
     for step in 0..sampling.steps {
         let count = if step + 1 == sampling.steps { sampling.fine - per_step * (sampling.steps - 1) } else { per_step };
         let inv_s = 64.0 * (1u32 << step) as f32;
-        let new: Vec<Vec<f32>> = depths.iter().zip(&sdfs).map(|(ts, sd)| upsample(ts, sd, inv_s, count)).collect();
+        let new: Vec<Vec<f32>> = depths
+            .iter()
+            .zip(&sdfs)
+            .zip(&empty_rays)
+            .map(|((ts, sd), &empty)| if empty { Vec::new() } else { upsample(ts, sd, inv_s, count) })
+            .collect();
         let pts: Vec<f32> = rays.iter().zip(&new).flat_map(|(r, ts)| ts.iter().flat_map(|&t| r.at(t))).collect();
-        let new_sdf = split_like(&eval(pts), &new);
+        let new_sdf = split_like(&eval(pts).0, &new);
         for r in 0..rays.len() {
             let mut merged: Vec<(f32, f32)> = depths[r]
                 .iter()
@@ -137,7 +166,7 @@ fn depths_and_sdf(
     (depths, sdfs)
 }
 
-fn split_like(flat: &[f32], shape: &[Vec<f32>]) -> Vec<Vec<f32>> {
+fn split_like<T: Copy>(flat: &[T], shape: &[Vec<f32>]) -> Vec<Vec<T>> {
     let mut at = 0;
     shape
         .iter()

@@ -8,6 +8,7 @@ use rmvp_recon::engine::encoding::{ide, IDE_WIDTH};
 use rmvp_recon::engine::vector::cross;
 use rmvp_recon::engine::{Activation, HashGrid, Init, Mlp, MlpCache, ParamLayout};
 use rmvp_recon::model::{Model, ShadingCache, ShadingInput, STOKES, VARIANCE_SCALE};
+use rmvp_recon::occupancy::OccupancyGrid;
 use rmvp_recon::pbrdf::{degrees, double_azimuth};
 use rmvp_recon::presets::{self, Preset};
 use rmvp_recon::ray::Ray;
@@ -302,8 +303,8 @@ fn volume_rendering_end_to_end() {
 
 #[test]
 fn volume_rendering_at_the_samples_that_carry_weight() {
-    // A training step's samples: some left out on every ray, and a ray past the object left
-    // with none.
+    // A training step's samples, through the occupancy grid: some left out on every ray, and
+    // a ray past the object left with none.
     let (model, mut params) = small_model();
     // A sharper surface than the start's (inv_s 100, not 20), as after some training.
     params[model.variance] = 100f32.ln() / VARIANCE_SCALE;
@@ -315,7 +316,8 @@ fn volume_rendering_at_the_samples_that_carry_weight() {
     rays.push(past);
     let lw = [1.0, 1.0, 1.0, 0.5];
     let sampling = Sampling { coarse: 12, fine: 8, steps: 2, min_weight: 0.01 };
-    let depths = weighted_samples(&model, &params, &lw, &rays, sampling, &[0.5; 6]);
+    let grid = OccupancyGrid::new(&model, &params, &lw);
+    let depths = weighted_samples(&model, &params, &lw, &rays, sampling, &[0.5; 6], Some(&grid));
     let counts: Vec<usize> = depths.iter().map(Vec::len).collect();
     assert!(counts[..5].iter().all(|&c| c > 0 && c < 20) && counts[5] == 0, "samples a ray {counts:?}");
     check_volume_rendering("volume rendering at weighted samples", &model, &params, &lw, &rays, &depths);

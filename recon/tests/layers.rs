@@ -7,11 +7,12 @@ use std::collections::BTreeSet;
 use std::path::Path;
 
 /// The modules from the bottom up; a module may use the ones before it.
-const LAYERS: [&str; 22] = [
+const LAYERS: [&str; 23] = [
     "error",
     "engine",
     "pbrdf",
     "model",
+    "occupancy",
     "ray",
     "samples",
     "volume",

@@ -136,19 +136,21 @@ fn resume_continues_bit_for_bit() {
     let scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
     let mut config = small_config(40);
     config.batch_rays = 64;
-    config.diffuse_only = 3; // cross the warm-up boundary between stop and resume
+    config.diffuse_only = 19; // cross the warm-up boundary between stop and resume
+    assert!(config.sampling.min_weight > 0.0 && rmvp_recon::occupancy::REFRESH_EVERY == 16);
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     // On one thread here, on two below: the same steps whatever the number of threads.
     let mut straight = Trainer::new(config.clone(), set.clone());
     rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| {
-        for _ in 0..6 {
+        for _ in 0..22 {
             straight.step();
         }
     });
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let mut first = Trainer::new(config.clone(), set.clone());
+    // Stopped after the occupancy grid's refresh at 16, before the next.
     pool.install(|| {
-        for _ in 0..2 {
+        for _ in 0..18 {
             first.step();
         }
     });
@@ -157,7 +159,7 @@ fn resume_continues_bit_for_bit() {
     checkpoint::save(&first, None, &path).unwrap();
     drop(first);
     let mut resumed = checkpoint::load(&path, set.clone(), &config, None).unwrap();
-    assert_eq!(resumed.iteration, 2);
+    assert_eq!(resumed.iteration, 18);
     pool.install(|| {
         for _ in 0..4 {
             resumed.step();

@@ -1,0 +1,85 @@
+//! The SDF on a coarse grid over the unit sphere's cube, refreshed from the field every few
+//! iterations: where it shows the surface to be far, a training step's ray sampling reads the
+//! SDF from it instead of evaluating the networks (the role of the occupancy grids of
+//! instant-NGP, NeuS2 and instant-nsr-pl, which keep samples out of empty space).
+
+use crate::model::Model;
+use rayon::prelude::*;
+
+/// Cells per axis over `[-1, 1]^3`.
+pub const CELLS: usize = 32;
+
+/// Iterations between refreshes.
+pub const REFRESH_EVERY: u32 = 16;
+
+/// How far from the surface, in cell diagonals, every corner of a cell must be for the grid to
+/// stand in for the field inside it: one diagonal is where a surface could enter the cell of a
+/// distance field; the rest covers a field that is not yet one and the iterations since the
+/// refresh.
+const FAR_DIAGONALS: f32 = 2.0;
+
+/// The SDF at the corners of [`CELLS`]^3 cells over `[-1, 1]^3`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OccupancyGrid {
+    /// `(CELLS + 1)^3` corner values, x fastest.
+    sdf: Vec<f32>,
+}
+
+/// Corners per axis.
+const SIDE: usize = CELLS + 1;
+
+/// A cell's side.
+const CELL: f32 = 2.0 / CELLS as f32;
+
+impl OccupancyGrid {
+    /// Values a grid holds.
+    pub const VALUES: usize = SIDE * SIDE * SIDE;
+
+    /// The grid of `model`'s SDF at `params`, its hash grid's levels weighted by `level_weight`.
+    pub fn new(model: &Model, params: &[f32], level_weight: &[f32]) -> Self {
+        let sdf = (0..SIDE)
+            .into_par_iter()
+            .flat_map_iter(|z| {
+                let points: Vec<f32> =
+                    (0..SIDE * SIDE).flat_map(|k| [k % SIDE, k / SIDE, z].map(|i| i as f32 * CELL - 1.0)).collect();
+                model.field.sdf(params, &points, level_weight)
+            })
+            .collect();
+        Self { sdf }
+    }
+
+    /// The grid's values, `(CELLS + 1)^3` SDF values at the cells' corners, x fastest.
+    pub fn values(&self) -> &[f32] {
+        &self.sdf
+    }
+
+    /// The grid of [`OccupancyGrid::values`] (None unless there are [`OccupancyGrid::VALUES`]).
+    pub fn from_values(values: &[f32]) -> Option<Self> {
+        (values.len() == Self::VALUES).then(|| Self { sdf: values.to_vec() })
+    }
+
+    /// The SDF at `p` interpolated from the grid, where every corner of `p`'s cell lies
+    /// farther from the surface than [`FAR_DIAGONALS`] cell diagonals (the surface cannot be
+    /// near `p`); `None` where it may be.
+    pub fn far_sdf(&self, p: [f32; 3]) -> Option<f32> {
+        let far = FAR_DIAGONALS * CELL * 3f32.sqrt();
+        let mut cell = [0usize; 3];
+        let mut frac = [0f32; 3];
+        for a in 0..3 {
+            let x = ((p[a] + 1.0) / CELL).clamp(0.0, CELLS as f32);
+            cell[a] = (x as usize).min(CELLS - 1);
+            frac[a] = x - cell[a] as f32;
+        }
+        let mut value = 0.0;
+        for k in 0..8 {
+            let bit = [k & 1, (k >> 1) & 1, (k >> 2) & 1];
+            let corner = self.sdf[(cell[0] + bit[0]) + SIDE * ((cell[1] + bit[1]) + SIDE * (cell[2] + bit[2]))];
+            if corner.abs() <= far {
+                return None;
+            }
+            let w: f32 = (0..3).map(|a| if bit[a] == 1 { frac[a] } else { 1.0 - frac[a] }).product();
+            value += w * corner;
+        }
+        Some(value)
+    }
+}
