@@ -37,12 +37,17 @@ impl OccupancyGrid {
 
     /// The grid of `model`'s SDF at `params`, its hash grid's levels weighted by `level_weight`.
     pub fn new(model: &Model, params: &[f32], level_weight: &[f32]) -> Self {
+        Self::from_sdf(|points| model.field.sdf(params, points, level_weight))
+    }
+
+    /// The grid of the SDF `sdf` gives at points (n x 3), one plane of corners at a time.
+    fn from_sdf(sdf: impl Fn(&[f32]) -> Vec<f32> + Sync) -> Self {
         let sdf = (0..SIDE)
             .into_par_iter()
             .flat_map_iter(|z| {
                 let points: Vec<f32> =
                     (0..SIDE * SIDE).flat_map(|k| [k % SIDE, k / SIDE, z].map(|i| i as f32 * CELL - 1.0)).collect();
-                model.field.sdf(params, &points, level_weight)
+                sdf(&points)
             })
             .collect();
         Self { sdf }
@@ -81,5 +86,41 @@ impl OccupancyGrid {
             value += w * corner;
         }
         Some(value)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rmvp_dataset::rng::Rng;
+
+    /// A sphere of radius 0.5 and a plate 0.004 thick (a sixteenth of a cell) across it.
+    fn sphere_and_plate(p: &[f32]) -> f32 {
+        let sphere = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 0.5;
+        let plate = ((p[2] - 0.3).abs() - 0.002).max(p[0].abs().max(p[1].abs()) - 0.8);
+        sphere.min(plate)
+    }
+
+    #[test]
+    fn the_grid_stands_in_only_where_the_surface_is_far_however_thin() {
+        let grid = OccupancyGrid::from_sdf(|points| points.chunks_exact(3).map(sphere_and_plate).collect());
+        let mut rng = Rng::for_pixel(3, 0, 0);
+        let (mut stood_in, mut near) = (0, 0);
+        for _ in 0..200_000 {
+            let p = [0, 1, 2].map(|_| 2.0 * rng.next_f32() - 1.0);
+            let truth = sphere_and_plate(&p);
+            match grid.far_sdf(p) {
+                Some(value) => {
+                    stood_in += 1;
+                    // Never within a cell of the surface (the sample spacing of a ray is about
+                    // as much), and on the surface's side.
+                    assert!(truth.abs() > CELL, "{p:?}: the surface is {truth} away");
+                    assert_eq!(value > 0.0, truth > 0.0, "{p:?}: {value} against {truth}");
+                }
+                None => near += usize::from(truth.abs() > 0.5),
+            }
+        }
+        println!("the grid stands in at {stood_in} of 200000 points");
+        assert!(stood_in > 100_000 && near == 0, "stood in at {stood_in}; {near} points half a unit away not");
     }
 }
