@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The figures of the tests whose outcome depends on random inputs (sensor noise, renderer
 # samples, scan samples, a network's start), at several seeds through $RMVP_TEST_SEED (the
-# suite runs at 0): the spread each test's bounds must stand clear of (docs/benchmarks.md,
+# suite runs at 0): the spread each test's bounds must stand clear of (docs/design.md,
 # "Test bounds"). Usage: bench/test-margins.sh [--lab] [SEEDS...] (default seeds 0 1 2 3;
 # with --lab, the simulated lab alone, about 8 minutes a seed).
 set -euo pipefail

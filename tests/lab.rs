@@ -95,7 +95,9 @@ fn a_lab_session_becomes_posed_masked_views() {
     let errors = pose_errors(&found, cameras, false);
     let (worst_deg, worst_rel) = (errors.max_rotation_deg(), errors.max_centre_distance() / distance);
     eprintln!("charuco poses: rotation error at most {worst_deg:.4} deg, centres within {:.4} %", 100.0 * worst_rel);
-    assert!(worst_deg < 0.1 && worst_rel < 0.002, "{worst_deg} deg, {worst_rel}");
+    // Seeds 0 and 1 (`bench/test-margins.sh --lab`): at most 0.094 and 0.076 degrees, 0.14 and
+    // 0.12 % (docs/design.md, test bounds).
+    assert!(worst_deg < 0.15 && worst_rel < 0.002, "{worst_deg} deg, {worst_rel}");
 
     // The posed session is the rig calibration of the empty lab (same turntable positions);
     // and its poses, exported as nerfstudio transforms, import back.
@@ -212,8 +214,10 @@ fn a_lab_session_becomes_posed_masked_views() {
     assert!(datasheet.contains("CC-BY-4.0") && datasheet.contains("charuco") && datasheet.contains("scan.ply"));
     assert!(tmp.path().join("release.tar").is_file() && release.join("lab/contact/normals.png").is_file());
 
-    // The release's ground truth against the simulator's: the mesh within 0.2 % of the object's
-    // size, the normals within a degree (median), the environment map as the renderer's.
+    // The release's ground truth against the simulator's: the mesh within 0.3 % of the object's
+    // size, the normals within 1.5 degrees (median), the environment map as the renderer's.
+    // Seeds 0 and 1 gave 0.14 and 0.06 %, 0.89 and 0.55 degrees: the scan's alignment onto the
+    // reference reconstruction varies with the session's noise (docs/design.md, test bounds).
     let published = read_scene(&release.join("lab/nersp")).unwrap();
     let gt_mesh = published.mesh.clone().unwrap();
     let size = 2.0 * lab_setup().object_radius_mm;
@@ -236,7 +240,7 @@ fn a_lab_session_becomes_posed_masked_views() {
         "release ground truth: Chamfer {chamfer:.4} mm ({:.3} % of the size), normals median {median:.3} deg",
         100.0 * chamfer / size
     );
-    assert!(chamfer < 0.002 * size && median < 1.0, "Chamfer {chamfer} mm, median {median} deg");
+    assert!(chamfer < 0.003 * size && median < 1.5, "Chamfer {chamfer} mm, median {median} deg");
     let env = published.env_map.as_ref().unwrap();
     let want = lab_environment(EnvMap::procedural()).world_image(env.width(), env.height());
     let worst = env.data().iter().zip(want.data()).map(|(a, b)| (a - b).abs()).fold(0.0, f32::max);

@@ -35,6 +35,7 @@ fn main() {
                     let set = TrainingSet::from_scene(&scene, config.margin).expect("training set");
                     let mut trainer = checkpoint::load(&path, set, &recorded, None).expect("checkpoint");
                     trainer.config = config;
+                    trainer.refresh_occupancy();
                     let (ms, samples) = measure(&mut trainer, 2, steps, true);
                     let label = if min_weight.is_some() { "every sample" } else { "as trained" };
                     report(&format!("trained, {label}"), threads, ms, trainer.config.batch_rays, samples);

@@ -217,8 +217,9 @@ impl Trainer {
     }
 
     /// Build the occupancy grid from the current parameters (none where every sample is
-    /// rendered): at the start, every [`REFRESH_EVERY`] iterations and after a roll-back.
-    fn refresh_occupancy(&mut self) {
+    /// rendered): at the start, every [`REFRESH_EVERY`] iterations and after a roll-back, and
+    /// where a caller changed the configuration's sampling.
+    pub fn refresh_occupancy(&mut self) {
         self.occupancy = (self.config.sampling.min_weight > 0.0)
             .then(|| Arc::new(OccupancyGrid::new(&self.model, &self.params, &self.level_weight())));
     }

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 /// The seed that tests whose figures depend on random inputs (noise, samples, a network's
 /// start) add to their own: `$RMVP_TEST_SEED`, else 0. The suite runs at 0;
 /// `bench/test-margins.sh` runs those tests at other seeds to measure the spread of their
-/// figures against their bounds (`docs/benchmarks.md`, "Test bounds").
+/// figures against their bounds (`docs/design.md`, "Test bounds").
 pub fn test_seed() -> u64 {
     match std::env::var("RMVP_TEST_SEED") {
         Ok(text) => text.parse().unwrap_or_else(|_| panic!("RMVP_TEST_SEED={text:?} is not a whole number")),
