@@ -28,7 +28,7 @@ pub enum Preset {
 }
 
 impl Preset {
-    /// Training iterations of a run of this preset unless told otherwise (fast: 3000, about 6
+    /// Training iterations of a run of this preset unless told otherwise (fast: 3000, about 2
     /// minutes on 2 cores, lower error than 2000 on every scene of the evaluation set at
     /// 1224x1024; dense: 4000; paper: the official 100k).
     pub fn default_iterations(self) -> u32 {
