@@ -109,8 +109,8 @@ impl StepCompute for CpuStep {
         // The regularisers keep the weight each sample has when every sample is rendered: the
         // samples left out are not regularised, and the others' gradients are what they were.
         // (Means over the samples taken, as NeuS2 and instant-nsr-pl, weigh the curvature
-        // term near the surface up to eight times as much: a degree more normal error on the
-        // Mitsuba scenes, docs/benchmarks.md.)
+        // term near the surface up to eight times as much: on the Mitsuba horse 5.54 degrees
+        // against 4.28, about a degree more on most of the eight scenes.)
         let every = rays.len() * (config.sampling.coarse + config.sampling.fine);
         let norm = Norms { rays: rays.len() as f32, masked: masked_total as f32, samples: every as f32 };
         let step = Step { model, params, set, config, batch, norm };
