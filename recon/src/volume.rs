@@ -85,7 +85,7 @@ fn carrying_weight(sdf: &[f32], inv_s: f32, min_weight: f32) -> Vec<bool> {
     for i in 0..n {
         keep[i] |= transmittance * (1.0 - sigma[i]) >= min_weight;
         if i + 1 < n {
-            let alpha = ((sigma[i] - sigma[i + 1] + 1e-5) / (sigma[i] + 1e-5)).clamp(0.0, 1.0);
+            let alpha = section_alpha(sigma[i], sigma[i + 1]).clamp(0.0, 1.0);
             if transmittance * alpha >= min_weight {
                 keep[i] = true;
                 keep[i + 1] = true;
@@ -94,6 +94,13 @@ fn carrying_weight(sdf: &[f32], inv_s: f32, min_weight: f32) -> Vec<bool> {
         }
     }
     keep
+}
+
+/// NeuS's opacity of the section between two samples from `sigmoid(s * sdf)` at its start and
+/// its end, before clamping to `[0, 1]`: the one formula of the up-sampling, the choice of the
+/// samples that carry weight and the compositing.
+fn section_alpha(before: f32, after: f32) -> f32 {
+    (before - after + 1e-5) / (before + 1e-5)
 }
 
 /// The depths of [`sample_depths`] and the SDF at them, read from `occupancy` where it shows
@@ -193,7 +200,7 @@ fn upsample(t: &[f32], sdf: &[f32], inv_s: f32, count: usize) -> Vec<f32> {
         prev_cos = cos;
         let prev_cdf = sigmoid((mid - slope * dist * 0.5) * inv_s);
         let next_cdf = sigmoid((mid + slope * dist * 0.5) * inv_s);
-        let alpha = (prev_cdf - next_cdf + 1e-5) / (prev_cdf + 1e-5);
+        let alpha = section_alpha(prev_cdf, next_cdf);
         weights.push(alpha * transmittance + 1e-5);
         transmittance *= 1.0 - alpha + 1e-7;
     }
@@ -310,7 +317,7 @@ fn composite(
             if i + 1 == start + count {
                 break;
             }
-            let raw = (sigma[i] - sigma[i + 1] + 1e-5) / (sigma[i] + 1e-5);
+            let raw = section_alpha(sigma[i], sigma[i + 1]);
             alpha_raw[i] = raw;
             alpha[i] = raw.clamp(0.0, 1.0);
             let w = trans * alpha[i];
