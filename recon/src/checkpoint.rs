@@ -53,7 +53,7 @@ pub fn load(path: &Path, set: TrainingSet, config: &TrainConfig, options: Option
         return Err(Error::CheckpointSettings { path: path.to_path_buf(), changed });
     }
     // The run samples through an occupancy grid exactly when it renders only weighted samples.
-    let occupancy = if config.sampling.min_weight > 0.0 { OccupancyGrid::VALUES } else { 0 };
+    let occupancy = if config.sampling.skips_empty_space() { OccupancyGrid::VALUES } else { 0 };
     if header.occupancy != occupancy {
         return Err(bad(&format!("{} occupancy grid values, the run has {occupancy}", header.occupancy)));
     }

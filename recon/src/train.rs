@@ -220,7 +220,10 @@ impl Trainer {
     /// rendered): at the start, every [`REFRESH_EVERY`] iterations and after a roll-back, and
     /// where a caller changed the configuration's sampling.
     pub fn refresh_occupancy(&mut self) {
-        self.occupancy = (self.config.sampling.min_weight > 0.0)
+        self.occupancy = self
+            .config
+            .sampling
+            .skips_empty_space()
             .then(|| Arc::new(OccupancyGrid::new(&self.model, &self.params, &self.level_weight())));
     }
 }

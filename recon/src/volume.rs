@@ -26,6 +26,14 @@ pub struct Sampling {
     pub min_weight: f32,
 }
 
+impl Sampling {
+    /// Whether a training step renders only the samples that carry weight, and samples
+    /// through an occupancy grid (`min_weight` above 0).
+    pub fn skips_empty_space(&self) -> bool {
+        self.min_weight > 0.0
+    }
+}
+
 /// Sample depths for `rays`: coarse (shifted by `jitter[r]` in `[0, 1)` of a step) then NeuS's
 /// up-sampling on the SDF. Every ray gets `coarse + fine` sorted depths.
 pub fn sample_depths(
@@ -61,7 +69,7 @@ pub fn weighted_samples(
     occupancy: Option<&OccupancyGrid>,
 ) -> Vec<Vec<f32>> {
     let (depths, sdf) = depths_and_sdf(model, params, level_weight, rays, sampling, jitter, occupancy);
-    if sampling.min_weight <= 0.0 {
+    if !sampling.skips_empty_space() {
         return depths;
     }
     let inv_s = model.inv_s(params);

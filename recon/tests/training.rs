@@ -137,7 +137,7 @@ fn resume_continues_bit_for_bit() {
     let mut config = small_config(40);
     config.batch_rays = 64;
     config.diffuse_only = 19; // cross the warm-up boundary between stop and resume
-    assert!(config.sampling.min_weight > 0.0 && rmvp_recon::occupancy::REFRESH_EVERY == 16);
+    assert!(config.sampling.skips_empty_space() && rmvp_recon::occupancy::REFRESH_EVERY == 16);
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     // On one thread here, on two below: the same steps whatever the number of threads.
     let mut straight = Trainer::new(config.clone(), set.clone());
