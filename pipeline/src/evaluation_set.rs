@@ -1,5 +1,6 @@
 //! The reconstruction evaluation set: shapes beyond spot and bunny (fine bumps, a thin knotted
-//! tube with narrow gaps, sharp creases, a deep concavity) under several materials (rough and
+//! tube with narrow gaps, sharp creases, a deep concavity, a ring whose underside no training
+//! view sees) under several materials (rough and
 //! bright, smooth and dark, a conductor, spatially varying albedo and roughness), simulated
 //! with held-out views. `benches/quality.rs` reconstructs and tabulates them
 //! (`docs/benchmarks.md`, "Reconstruction quality").
@@ -10,6 +11,7 @@ use rmvp_dataset::layout::Layout;
 use rmvp_dataset::mesh::{ScalarKind, VertexProperty};
 use rmvp_dataset::{Mesh, Scene};
 use rmvp_render::pbrdf::Interface;
+use rmvp_render::rig::RigKind;
 use rmvp_render::{default_mesh, shapes};
 use std::path::{Path, PathBuf};
 
@@ -28,6 +30,8 @@ pub enum Shape {
     Spot,
     /// The Stanford bunny, read from the shared meshes (`bunny.ply`).
     Bunny,
+    /// A ring lying flat (a pool float), seen only from above: its underside is in no view.
+    Float,
 }
 
 /// How a scene's surface looks.
@@ -55,48 +59,64 @@ pub struct EvaluationScene {
     pub material: Material,
     /// Dielectric or conductor.
     pub interface: Interface,
+    /// Where the training views are: random directions from 20 degrees below the equator up, or
+    /// the turntable's two rings above it.
+    pub rig: RigKind,
 }
 
 /// Gold at 600 nm, the conductor of the set.
 const GOLD: Interface = Interface::Conductor(0.25, 3.0);
 
 /// The scenes, in table order.
-pub const SCENES: [EvaluationScene; 6] = [
+pub const SCENES: [EvaluationScene; 7] = [
     EvaluationScene {
         name: "bumps",
         shape: Shape::Bumps,
         material: Material::Uniform { albedo: [0.8, 0.78, 0.75], roughness: 0.45 },
         interface: Interface::Dielectric(1.5),
+        rig: RigKind::Sphere,
     },
     EvaluationScene {
         name: "knot",
         shape: Shape::Knot,
         material: Material::Uniform { albedo: [0.04, 0.04, 0.05], roughness: 0.06 },
         interface: Interface::Dielectric(1.5),
+        rig: RigKind::Sphere,
     },
     EvaluationScene {
         name: "gear",
         shape: Shape::Gear,
         material: Material::Uniform { albedo: [0.0, 0.0, 0.0], roughness: 0.2 },
         interface: GOLD,
+        rig: RigKind::Sphere,
     },
     EvaluationScene {
         name: "bowl",
         shape: Shape::Bowl,
         material: Material::Varying,
         interface: Interface::Dielectric(1.5),
+        rig: RigKind::Sphere,
     },
     EvaluationScene {
         name: "spot",
         shape: Shape::Spot,
         material: Material::Uniform { albedo: [0.75, 0.45, 0.3], roughness: 0.1 },
         interface: Interface::Dielectric(1.5),
+        rig: RigKind::Sphere,
     },
     EvaluationScene {
         name: "bunny",
         shape: Shape::Bunny,
         material: Material::Varying,
         interface: Interface::Dielectric(1.5),
+        rig: RigKind::Sphere,
+    },
+    EvaluationScene {
+        name: "float",
+        shape: Shape::Float,
+        material: Material::Uniform { albedo: [0.85, 0.35, 0.1], roughness: 0.15 },
+        interface: Interface::Dielectric(1.5),
+        rig: RigKind::Turntable,
     },
 ];
 
@@ -139,6 +159,7 @@ impl EvaluationScene {
             Shape::Bowl => shapes::bowl(0.6, 0.12, 96),
             Shape::Spot => default_mesh(),
             Shape::Bunny => Mesh::read(&meshes.join("bunny.ply"))?,
+            Shape::Float => shapes::torus(0.4, 96, 24),
         };
         paint(&mut mesh, self.material);
         Ok(mesh)
@@ -158,6 +179,7 @@ impl EvaluationScene {
             spp: options.spp,
             interface: self.interface,
             seed: options.seed,
+            rig: self.rig,
             layouts: vec![Layout::Nersp],
             progress: false,
             ..SimulateOptions::default()

@@ -13,6 +13,7 @@ use crate::losses::{curvature, eikonal, l1, mask_bce, PerTerm, Term};
 use crate::model::{GridGradient, Model, STOKES};
 use crate::occupancy::OccupancyGrid;
 use crate::ray::Ray;
+use crate::samples::{FieldGrad, FieldSamples};
 use crate::volume::{weighted_samples, Forward, RayGrad};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -36,7 +37,18 @@ pub struct Batch {
     /// The SDF on a coarse grid, read where it shows the surface to be far (None: the field
     /// everywhere).
     pub occupancy: Option<Arc<OccupancyGrid>>,
+    /// For each ray, [`REGULARISED_LEFT_OUT`] numbers in `[0, 1)` that pick the samples left
+    /// out of the step that the regularisers still see (empty where every sample is rendered).
+    pub left_out_draws: Vec<f32>,
 }
+
+/// Samples a step leaves out on each ray that the Eikonal and curvature terms still see, drawn
+/// at random among those left out, each standing for its share of them: the regularisers'
+/// expected gradient is the one they have when every sample is rendered, so the field stays a
+/// distance field away from the surfaces and behind them, where no view looks. (Without them a
+/// start blob left in space that no view sees stays there: the evaluation set's ring grows a
+/// skirt below its underside.)
+pub const REGULARISED_LEFT_OUT: usize = 2;
 
 /// What a step's compute returns.
 #[derive(Clone, Debug)]
@@ -137,13 +149,14 @@ impl Step<'_> {
     /// The gradient and losses of the batch's rays in `range`.
     fn chunk(&self, range: Range<usize>) -> (Vec<f32>, GridGradient, ChunkSums) {
         let (set, model, params, config) = (self.set, self.model, self.params, self.config);
-        let (batch, jitter) = (&self.batch.rays[range.clone()], &self.batch.jitter[range]);
+        let (batch, jitter) = (&self.batch.rays[range.clone()], &self.batch.jitter[range.clone()]);
         let (level_weight, fd_step, warm) = (&self.batch.level_weight[..], self.batch.fd_step, self.batch.warm);
         let (use_geometric, norm) = (self.batch.use_geometric, &self.norm);
         let rays: Vec<Ray> = batch.iter().map(|&(v, p)| set.ray(v, p)).collect();
         let occupancy = self.batch.occupancy.as_deref();
-        let depths = weighted_samples(model, params, level_weight, &rays, config.sampling, jitter, occupancy);
-        let fwd = Forward::run(model, params, level_weight, &rays, &depths, fd_step, warm);
+        let samples = weighted_samples(model, params, level_weight, &rays, config.sampling, jitter, occupancy);
+        let depths = &samples.rendered;
+        let fwd = Forward::run(model, params, level_weight, &rays, depths, fd_step, warm);
         let w = &config.weights;
         let mut sums = ChunkSums { samples: fwd.samples(), ..Default::default() };
         let mut grads = vec![RayGrad::default(); rays.len()];
@@ -206,7 +219,67 @@ impl Step<'_> {
             })
             .collect();
         let mut grad = vec![0f32; model.network_params()];
-        let grid = fwd.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
+        let mut grid = fwd.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
+        let draws = &self.batch.left_out_draws;
+        if !draws.is_empty() {
+            // Each ray's draws pick among its samples left out; each stands for its share of
+            // the samples the ray would take rendering every one.
+            let every = config.sampling.coarse + config.sampling.fine;
+            let draws = &draws[REGULARISED_LEFT_OUT * range.start..REGULARISED_LEFT_OUT * range.end];
+            let (mut points, mut shares) = (Vec::new(), Vec::new());
+            for ((ray, (rendered, left_out)), u) in
+                rays.iter().zip(depths.iter().zip(&samples.left_out)).zip(draws.chunks_exact(REGULARISED_LEFT_OUT))
+            {
+                if left_out.is_empty() {
+                    continue;
+                }
+                let share = every.saturating_sub(rendered.len()) as f32 / REGULARISED_LEFT_OUT as f32;
+                for &u in u {
+                    let pick = ((u * left_out.len() as f32) as usize).min(left_out.len() - 1);
+                    points.extend(ray.at(left_out[pick]));
+                    shares.push(share);
+                }
+            }
+            if !points.is_empty() {
+                grid.extend(self.regularise(points, &shares, &mut sums, &mut grad));
+            }
+        }
         (grad, grid, sums)
+    }
+
+    /// The Eikonal and curvature terms at `points` (n x 3), each point weighing as many samples
+    /// as its `shares`; adds the networks' gradient into `grad` and returns the hash grid's.
+    fn regularise(&self, points: Vec<f32>, shares: &[f32], sums: &mut ChunkSums, grad: &mut [f32]) -> GridGradient {
+        let batch = self.batch;
+        let field = FieldSamples::evaluate(self.model, self.params, &batch.level_weight, points, batch.fd_step);
+        let w = &self.config.weights;
+        let scales: Vec<f32> = shares.iter().map(|s| s / self.norm.samples).collect();
+        let mut d_gradients = vec![0f32; field.gradients.len()];
+        for ((g, d), &scale) in field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)).zip(&scales) {
+            let (loss, dg) = eikonal([g[0], g[1], g[2]]);
+            sums.losses[Term::Eikonal] += (loss * scale) as f64;
+            for k in 0..3 {
+                d[k] = w[Term::Eikonal] * dg[k] * scale;
+            }
+        }
+        let d_laplacians: Vec<f32> = field
+            .laplacians
+            .iter()
+            .zip(&scales)
+            .map(|(&l, &scale)| {
+                let (loss, d) = curvature(l);
+                sums.losses[Term::Curvature] += (loss * scale) as f64;
+                w[Term::Curvature] * d * scale
+            })
+            .collect();
+        let zeros = |n: usize| vec![0f32; n];
+        let d = FieldGrad {
+            sdf: &zeros(field.sdf.len()),
+            normals: &zeros(field.normals.len()),
+            features: &zeros(field.features.len()),
+            gradients: &d_gradients,
+            laplacians: &d_laplacians,
+        };
+        field.backward(self.model, self.params, &d, grad)
     }
 }

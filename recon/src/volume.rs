@@ -54,6 +54,8 @@ pub fn sample_depths(
 /// The others lie in empty space before the surface or deep behind it: leaving them out
 /// changes a ray's composited values by less than `min_weight` per sample left out, and the
 /// gradient they would have had is as small. A ray may keep no sample (its opacity is then 0).
+/// The depths left out come back too, for the regularisers
+/// ([`crate::step::REGULARISED_LEFT_OUT`]).
 ///
 /// With `occupancy`, the SDF at a sample where the grid shows the surface to be far is the
 /// grid's, and a ray whose uniform samples all lie there is not up-sampled: nothing near it
@@ -67,20 +69,32 @@ pub fn weighted_samples(
     sampling: Sampling,
     jitter: &[f32],
     occupancy: Option<&OccupancyGrid>,
-) -> Vec<Vec<f32>> {
+) -> StepSamples {
     let (depths, sdf) = depths_and_sdf(model, params, level_weight, rays, sampling, jitter, occupancy);
     if !sampling.skips_empty_space() {
-        return depths;
+        let left_out = vec![Vec::new(); depths.len()];
+        return StepSamples { rendered: depths, left_out };
     }
     let inv_s = model.inv_s(params);
-    depths
+    let (rendered, left_out) = depths
         .iter()
         .zip(&sdf)
         .map(|(t, s)| {
             let keep = carrying_weight(s, inv_s, sampling.min_weight);
-            t.iter().zip(keep).filter(|(_, k)| *k).map(|(&d, _)| d).collect()
+            let (kept, left): (Vec<(f32, bool)>, Vec<(f32, bool)>) = t.iter().copied().zip(keep).partition(|k| k.1);
+            (kept.into_iter().map(|k| k.0).collect(), left.into_iter().map(|k| k.0).collect())
         })
-        .collect()
+        .unzip();
+    StepSamples { rendered, left_out }
+}
+
+/// A training step's samples on each ray ([`weighted_samples`]), in depth order.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct StepSamples {
+    /// The depths rendered.
+    pub rendered: Vec<Vec<f32>>,
+    /// The depths left out (none where every sample is rendered).
+    pub left_out: Vec<Vec<f32>>,
 }
 
 /// Which of a ray's samples (SDF `sdf` there, in depth order) carry weight, as

@@ -317,7 +317,7 @@ fn volume_rendering_at_the_samples_that_carry_weight() {
     let lw = [1.0, 1.0, 1.0, 0.5];
     let sampling = Sampling { coarse: 12, fine: 8, steps: 2, min_weight: 0.01 };
     let grid = OccupancyGrid::new(&model, &params, &lw);
-    let depths = weighted_samples(&model, &params, &lw, &rays, sampling, &[0.5; 6], Some(&grid));
+    let depths = weighted_samples(&model, &params, &lw, &rays, sampling, &[0.5; 6], Some(&grid)).rendered;
     let counts: Vec<usize> = depths.iter().map(Vec::len).collect();
     assert!(counts[..5].iter().all(|&c| c > 0 && c < 20) && counts[5] == 0, "samples a ray {counts:?}");
     check_volume_rendering("volume rendering at weighted samples", &model, &params, &lw, &rays, &depths);

@@ -256,3 +256,64 @@ fn without_the_photometric_cue_the_tangent_loss_takes_each_aop_as_measured() {
     };
     assert!(run(true) == run(false), "the untrained specular network turned the AoPs");
 }
+
+#[test]
+fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_rendered() {
+    use rmvp_recon::losses::Term;
+    use rmvp_recon::step::{Batch, CpuStep, StepCompute, REGULARISED_LEFT_OUT};
+    let scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
+    let mut config = small_config(200);
+    config.batch_rays = 64;
+    config.diffuse_only = 0;
+    let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
+    let mut trainer = Trainer::new(config.clone(), set.clone());
+    for _ in 0..30 {
+        trainer.step();
+    }
+    // As sharp as after a few hundred iterations, so that most samples are left out.
+    let variance = trainer.model.variance;
+    trainer.params[variance] = 200f32.ln() / rmvp_recon::model::VARIANCE_SCALE;
+    let level_weight = trainer.level_weight();
+    let mut rng = rmvp_dataset::rng::Rng::for_pixel(7 + rmvp_testkit::test_seed(), 0, 0);
+    let rays: Vec<(u32, u32)> =
+        (0..config.batch_rays).map(|_| set.pool[rng.next_u32() as usize % set.pool.len()]).collect();
+    // Without the occupancy grid both steps take the same depths on every ray.
+    let mut batch = Batch {
+        jitter: rays.iter().map(|_| rng.next_f32()).collect(),
+        rays,
+        fd_step: trainer.fd_step(&level_weight),
+        level_weight,
+        warm: false,
+        use_geometric: false,
+        occupancy: None,
+        left_out_draws: Vec::new(),
+    };
+    let (model, params) = (&trainer.model, &trainer.params);
+    let regularisers = |g: &rmvp_recon::step::StepGradient| [g.losses[Term::Eikonal], g.losses[Term::Curvature]];
+    let mut every_config = config.clone();
+    every_config.sampling.min_weight = 0.0;
+    let every = CpuStep.gradient(model, params, &set, &every_config, &batch);
+    let every_samples = batch.rays.len() * (config.sampling.coarse + config.sampling.fine);
+    assert_eq!(every.samples, every_samples);
+    let draws = 200;
+    let mut estimates = Vec::new();
+    let mut taken = 0;
+    for _ in 0..draws {
+        batch.left_out_draws = (0..REGULARISED_LEFT_OUT * batch.rays.len()).map(|_| rng.next_f32()).collect();
+        let weighted = CpuStep.gradient(model, params, &set, &config, &batch);
+        taken = weighted.samples;
+        estimates.push(regularisers(&weighted));
+    }
+    assert!(taken < every_samples / 3, "{taken} of {every_samples} samples rendered");
+    for (k, name) in ["Eikonal", "curvature"].into_iter().enumerate() {
+        let values: Vec<f64> = estimates.iter().map(|e| e[k]).collect();
+        let mean = values.iter().sum::<f64>() / draws as f64;
+        let spread = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (draws - 1) as f64).sqrt();
+        let standard_error = spread / (draws as f64).sqrt();
+        let truth = regularisers(&every)[k];
+        println!("{name}: every sample {truth:.5}, left-out draws {mean:.5} +- {standard_error:.5} (one step's spread {spread:.5})");
+        // The estimate is unbiased, and a step's own spread is a fraction of the value.
+        assert!((mean - truth).abs() < 4.0 * standard_error, "{name}: {mean} against {truth}");
+        assert!(spread < 0.5 * truth, "{name}: spread {spread} of {truth}");
+    }
+}

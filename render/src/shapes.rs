@@ -143,6 +143,29 @@ pub fn torus_knot(p: u32, q: u32, tube: f64, segments: usize, sides: usize) -> M
     unit_sphere_mesh(positions, faces)
 }
 
+/// A ring lying in the XZ plane around +Y (a pool float): a tube of radius `tube` around a
+/// circle of radius 1, `segments` rings of `sides` vertices, scaled into the unit sphere.
+pub fn torus(tube: f64, segments: usize, sides: usize) -> Mesh {
+    let mut positions = Vec::with_capacity(segments * sides);
+    for i in 0..segments {
+        let (sa, ca) = (std::f64::consts::TAU * i as f64 / segments as f64).sin_cos();
+        for j in 0..sides {
+            let (sb, cb) = (std::f64::consts::TAU * j as f64 / sides as f64).sin_cos();
+            let r = 1.0 + tube * cb;
+            positions.push([r * ca, tube * sb, r * sa]);
+        }
+    }
+    let mut faces = Vec::with_capacity(2 * segments * sides);
+    for i in 0..segments {
+        for j in 0..sides {
+            let at = |i: usize, j: usize| ((i % segments) * sides + j % sides) as u32;
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            faces.extend([[a, c, b], [a, d, c]]);
+        }
+    }
+    unit_sphere_mesh(positions, faces)
+}
+
 /// A star-shaped prism with `teeth` sharp teeth (outer radius 1, inner `inner`), `height`
 /// tall: flat faces meeting at sharp creases (each face its own vertices and normal).
 pub fn gear(teeth: usize, inner: f64, height: f64) -> Mesh {
@@ -296,5 +319,6 @@ mod tests {
         assert_closed_outward("torus knot", &torus_knot(2, 3, 0.3, 128, 12));
         assert_closed_outward("gear", &gear(12, 0.75, 0.5));
         assert_closed_outward("bowl", &bowl(0.6, 0.15, 64));
+        assert_closed_outward("torus", &torus(0.4, 64, 16));
     }
 }

@@ -23,6 +23,14 @@ pub struct GridGradient {
     d_encoding: Vec<f32>,
 }
 
+impl GridGradient {
+    /// Append `other`'s lookups after this one's (one part of a sum instead of two).
+    pub fn extend(&mut self, other: GridGradient) {
+        self.points.extend(other.points);
+        self.d_encoding.extend(other.d_encoding);
+    }
+}
+
 /// What [`Field::forward`] keeps for [`Field::backward`].
 #[derive(Default)]
 pub struct FieldCache {
