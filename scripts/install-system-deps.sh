@@ -5,8 +5,11 @@
 #                                           calibration, reconstruction, datasets, local batches)
 #   scripts/install-system-deps.sh colmap   also COLMAP, for `rmvp poses --method colmap`
 #   scripts/install-system-deps.sh slurm    also Slurm's client commands, for `rmvp batch --slurm`
+#   scripts/install-system-deps.sh python   also Python's venv and pip, for the `rmvp` Python
+#                                           package (`./run python`)
 #   scripts/install-system-deps.sh test     what the tests start: COLMAP, a one-node Slurm
-#                                           (daemons and munge) and Chromium (the preview page)
+#                                           (daemons and munge), Chromium (the preview page)
+#                                           and Python (the package's tests)
 #   scripts/install-system-deps.sh bench    the tests' packages and the benchmarks' Python
 #                                           references (numpy, OpenCV, Mitsuba's LLVM)
 set -euo pipefail
@@ -24,18 +27,20 @@ colmap=(colmap)                                   # camera poses by structure fr
 slurm_client=(slurm-client)                       # sbatch, squeue, sacct, scontrol
 slurm_node=(slurmctld slurmd slurm-client munge)  # the one-node cluster the batch test starts
 browser=(chromium)                                # headless browser for the live-preview page test
+python=(python3-venv python3-pip)                 # a virtual environment the Python package installs into
 case "$purpose" in
   build) ;;
   colmap) packages+=("${colmap[@]}") ;;
   slurm) packages+=("${slurm_client[@]}") ;;
-  test) packages+=("${colmap[@]}" "${slurm_node[@]}" "${browser[@]}") ;;
+  python) packages+=("${python[@]}") ;;
+  test) packages+=("${colmap[@]}" "${slurm_node[@]}" "${browser[@]}" "${python[@]}") ;;
   bench)
-    packages+=("${colmap[@]}" "${slurm_node[@]}" "${browser[@]}")
+    packages+=("${colmap[@]}" "${slurm_node[@]}" "${browser[@]}" "${python[@]}")
     packages+=(python3-numpy python3-opencv) # same OpenCV 4.6 as the Rust side
     packages+=(python3-venv libllvm19)       # Mitsuba 3 (from PyPI) and its LLVM back end
     ;;
   *)
-    echo "usage: scripts/install-system-deps.sh [build|colmap|slurm|test|bench]" >&2
+    echo "usage: scripts/install-system-deps.sh [build|colmap|slurm|python|test|bench]" >&2
     exit 2
     ;;
 esac

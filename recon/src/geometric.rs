@@ -14,7 +14,8 @@ use crate::model::{Model, ShadingInput};
 use crate::ray::unit_sphere_span;
 use crate::samples::FieldSamples;
 use crate::trace::{sphere_trace, TraceLimits, TraceRay};
-use rmvp_dataset::polarization;
+use nalgebra::Vector3;
+use rmvp_dataset::{polarization, Camera};
 
 /// The two tangent directions one view gives at a surface point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -149,7 +150,9 @@ struct Query {
     dir: [f32; 3],
     /// Depth where the visibility ray leaves the unit sphere.
     exit: f32,
-    /// The view's ray towards the point and its Stokes frame.
+    /// The view's ray towards the point (world frame, unit).
+    towards: Vector3<f64>,
+    /// That ray and its Stokes frame in the unit frame.
     frame: [[f32; 3]; 3],
 }
 
@@ -188,13 +191,13 @@ pub fn tangents(
             if !view.mask[k] {
                 continue;
             }
-            let d_world = (world - view.camera.center()).normalize();
-            let (fx, fy) = view.camera.stokes_frame(&d_world);
+            let towards = (world - view.camera.center()).normalize();
+            let (fx, fy) = view.camera.stokes_frame(&towards);
             let (fx, fy) = (set.frame.dir_from_world(&fx), set.frame.dir_from_world(&fy));
-            let d = set.frame.dir_from_world(&d_world);
+            let frame = [set.frame.dir_from_world(&towards), fx, fy];
             // A point inside the unit sphere always leaves it; outside, nothing can occlude it.
             let exit = unit_sphere_span(x, to_camera).map_or(0.0, |(_, far)| far);
-            queries.push(Query { point: pi, view: vi, pixel: k, origin: x, dir: to_camera, exit, frame: [d, fx, fy] });
+            queries.push(Query { point: pi, view: vi, pixel: k, origin: x, dir: to_camera, exit, towards, frame });
         }
     }
     // Batched sphere tracing towards each camera.
@@ -217,7 +220,6 @@ pub fn tangents(
         shares.into_iter().map(|curvature_share| PointTangents { views: Vec::new(), curvature_share }).collect();
     for (i, q) in visible.iter().enumerate() {
         let view = &set.views[q.view];
-        let [d, fx, fy] = q.frame;
         let aop = match off_axis.get(i) {
             Some(&off_axis) => {
                 let [_, s1, s2] = channel_means(view, q.pixel);
@@ -225,15 +227,26 @@ pub fn tangents(
             }
             None => view.aop[q.pixel],
         };
-        let (s, c) = aop.sin_cos();
-        let e = [0, 1, 2].map(|a| c * fx[a] + s * fy[a]);
+        let (t, e) = aop_tangents(&view.camera, &q.towards, aop);
         out[q.point].views.push(Tangents {
-            t: cross(d, e),
-            t_hat: e,
+            t: set.frame.dir_from_world(&t),
+            t_hat: set.frame.dir_from_world(&e),
             weight: aop_weight(pixel_dop(view, q.pixel), reliability),
         });
     }
     out
+}
+
+/// The two tangent directions (world frame) that the AoP `aop` (radians, in the ray's Stokes
+/// frame, [`Camera::stokes_frame`]) of light arriving along `direction` (unit, world) gives:
+/// `t = d x e` and `e`, the polarization direction, as [`Tangents`] holds them. On the optical
+/// axis `t` is the official NeRSP loader's tangent `r1 sin(aop) - r2 cos(aop)` reversed; off
+/// the axis it follows the ray's frame, where that loader keeps the camera's axes.
+pub fn aop_tangents(camera: &Camera, direction: &Vector3<f64>, aop: f32) -> (Vector3<f64>, Vector3<f64>) {
+    let (x, y) = camera.stokes_frame(direction);
+    let (s, c) = f64::from(aop).sin_cos();
+    let e = x * c + y * s;
+    (direction.cross(&e), e)
 }
 
 /// The AoP of a measured linear polarization of angle `aop` (radians) and strength
@@ -350,6 +363,7 @@ mod tests {
                 origin: points[point],
                 dir,
                 exit: 1.0,
+                towards: Vector3::from(dir.map(|x| -f64::from(x))),
                 frame: [dir.map(|x| -x), fx, cross(dir, fx)],
             }
         };

@@ -81,8 +81,11 @@ pub fn weighted_samples(
         .zip(&sdf)
         .map(|(t, s)| {
             let keep = carrying_weight(s, inv_s, sampling.min_weight);
-            let (kept, left): (Vec<(f32, bool)>, Vec<(f32, bool)>) = t.iter().copied().zip(keep).partition(|k| k.1);
-            (kept.into_iter().map(|k| k.0).collect(), left.into_iter().map(|k| k.0).collect())
+            let (mut kept, mut left) = (Vec::new(), Vec::new());
+            for (&depth, carries) in t.iter().zip(keep) {
+                if carries { &mut kept } else { &mut left }.push(depth);
+            }
+            (kept, left)
         })
         .unzip();
     StepSamples { rendered, left_out }

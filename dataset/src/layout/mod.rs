@@ -56,6 +56,9 @@ pub enum Layout {
 }
 
 impl Layout {
+    /// Every layout, in the order of [`Layout::name`]'s documentation.
+    pub const ALL: [Layout; 4] = [Layout::Nersp, Layout::Rmvp, Layout::Rmvp3d, Layout::Pandora];
+
     /// Recognise the layout of a scene folder by its files: `scene.json` (ours), else
     /// `cameras.npz` with `images_stokes/` of `NNNN.npz` archives (RMVP3D) or `NN_s0.hdr` files
     /// (PANDORA), else `cameras.npz` (NeRSP). A folder that has part of a layout is told which
