@@ -58,6 +58,8 @@ enum Command {
     Dataset(dataset::Command),
     /// Reconstruct a scene with NeRSP: mesh, normal maps, re-rendered Stokes.
     Recon(recon::Args),
+    /// A reconstruction's page, report.html: the mesh in 3D, the losses, the figures, the views.
+    Report(report::Args),
     /// Align a scan onto a target mesh by a similarity (ICP with scale).
     Align(align::Args),
     /// Batches of reconstructions (datasets x variants x seeds) on this machine or on Slurm,
@@ -103,6 +105,7 @@ fn main() {
         Command::Stokes(args) => stokes::run(args),
         Command::Dataset(command) => dataset::run(command),
         Command::Recon(args) => recon::run(args),
+        Command::Report(args) => report::run(args),
         Command::Align(args) => align::run(args),
         Command::Eval(args) => eval::run(args),
         Command::Batch(command) => batch::run(command),

@@ -47,9 +47,11 @@ fn demo_captures_builds_a_dataset_and_reconstructs_it() {
     // The reconstruction stage ran and was evaluated (20 iterations: a coarse blob, not a shape).
     assert_eq!(report.reconstruction.iterations, 20);
     assert!(report.reconstruction.normal_mae_deg.is_finite(), "{report:?}");
-    for file in ["mesh.ply", "log.jsonl", "checkpoint.bin"] {
+    for file in ["mesh.ply", "log.jsonl", "checkpoint.bin", "evaluation.json", "report.html"] {
         assert!(out.join("recon").join(file).is_file(), "{file}");
     }
+    // The page (tests/report.rs opens one in a browser) stays small.
+    assert!(std::fs::metadata(out.join("recon/report.html")).unwrap().len() < 20 << 20);
     // --mesh-only: no view outputs (`rmvp recon`'s own test covers them).
     assert!(report.reconstruction.comparison.is_none() && !out.join("recon/normals").exists(), "{report:?}");
 

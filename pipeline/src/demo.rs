@@ -16,6 +16,7 @@
 //!    normals.
 
 use crate::build::{build_dataset, BuildOptions, BuildRecord, TrainViews, DATASET_LAYOUTS};
+use crate::report;
 use crate::simulate::NORMALIZATION_MARGIN;
 use crate::{Error, Result};
 use rmvp_align::{evaluate, SurfaceOptions};
@@ -25,6 +26,7 @@ use rmvp_capture::camera::CameraDevice;
 use rmvp_capture::session::positioning::Positioning;
 use rmvp_capture::session::{capture, SessionOptions, SessionReport};
 use rmvp_capture::simulator::{SimulatedCamera, SimulatedScene, SimulatorOptions};
+use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::io::png;
 use rmvp_dataset::layout::{nersp, read_scene, write_scene, Layout};
@@ -370,6 +372,9 @@ fn reconstruct_and_evaluate(dataset: &Scene, truth: &Scene, dir: &Path, options:
     let predicted = Mesh::read(&dir.join(MESH))?;
     let true_mesh = truth.mesh.as_ref().expect("the truth has its mesh");
     let evaluation = evaluate(&predicted, true_mesh, Some(truth), &SurfaceOptions::default())?;
+    write_bytes_atomically(&dir.join(report::EVALUATION), evaluation.to_json().as_bytes())?;
+    evaluation.write_error_maps(&dir.join(report::ERROR_MAPS))?;
+    report::write_recon_report(dir, Some(truth))?;
     Ok(ReconSummary {
         folder: RECON_FOLDER.into(),
         preset: recon_options.preset,

@@ -25,6 +25,7 @@ pub mod export;
 pub mod ground_truth;
 pub mod panorama;
 pub mod publish;
+pub mod report;
 pub mod simulate;
 pub mod verify;
 

@@ -13,6 +13,7 @@ pub mod eval;
 pub mod masks;
 pub mod poses;
 pub mod recon;
+pub mod report;
 pub mod simulate;
 pub mod stokes;
 

@@ -55,7 +55,8 @@ pub fn run(args: Args) -> Result<()> {
     if trainer.iteration < trainer.config.iterations {
         println!("stopped at iteration {} of {}; continue with --resume", trainer.iteration, trainer.config.iterations);
     } else {
-        println!("{} iterations; results in {}", trainer.iteration, args.output.display());
+        let page = rmvp_pipeline::report::write_recon_report(&args.output, Some(&scene))?;
+        println!("{} iterations; results in {}, the page {}", trainer.iteration, args.output.display(), page.display());
     }
     Ok(())
 }

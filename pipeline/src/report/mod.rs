@@ -1,0 +1,409 @@
+//! One page per reconstruction (`report.html`), self-contained: nothing fetched, no server.
+//! The mesh in an interactive 3D view (our own small WebGL code, `viewer.js`) with the views'
+//! cameras as frustums, the training's losses plotted (SVG), the figures as tables (options,
+//! evaluation, residuals), and the pictures the run wrote (comparison, residuals, normal error
+//! maps). Meshes above [`PAGE_TRIANGLES`] triangles are decimated for the page, which says so;
+//! the full mesh stays beside it.
+
+use crate::Result;
+use base64::engine::general_purpose::STANDARD as BASE64;
+use base64::Engine;
+use rmvp_dataset::io::atomic::write_bytes_atomically;
+use rmvp_dataset::io::input::{read_bytes, read_text};
+use rmvp_dataset::{Mesh, Scene};
+use rmvp_recon::reconstruct::{COMPARISON, LOG, MESH, RESIDUALS, RESIDUALS_PICTURE};
+use serde_json::Value;
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// The page's file name in the folder it describes.
+pub const PAGE: &str = "report.html";
+/// The evaluation a run's folder may hold (`rmvp eval --json`, the demo, the quality bench).
+pub const EVALUATION: &str = "evaluation.json";
+/// The normal error maps a run's folder may hold (`rmvp eval -o DIR/errors`).
+pub const ERROR_MAPS: &str = "errors";
+/// Triangles of the mesh the page draws at most.
+pub const PAGE_TRIANGLES: usize = 200_000;
+
+/// Most points of a loss curve (the log is averaged over buckets beyond).
+const CURVE_POINTS: usize = 600;
+
+/// Write `dir/report.html` for the reconstruction in `dir` (`rmvp recon`'s output), with the
+/// cameras of `scene` where given; returns its path.
+pub fn write_recon_report(dir: &Path, scene: Option<&Scene>) -> Result<PathBuf> {
+    let title = dir.canonicalize().ok().and_then(|d| d.file_name().map(|n| n.to_string_lossy().into_owned()));
+    let title = title.unwrap_or_else(|| "reconstruction".into());
+    let mut html = String::new();
+    let _ = write!(
+        html,
+        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title>",
+        escape(&title)
+    );
+    let _ = write!(html, "<style>{}</style></head><body><h1>{}</h1>", include_str!("style.css"), escape(&title));
+
+    html += "<h2>Surface</h2>";
+    let mesh_path = dir.join(MESH);
+    if mesh_path.is_file() {
+        let mesh = Mesh::read(&mesh_path)?;
+        html += &mesh_section(&mesh, scene);
+    } else {
+        html += "<p>No mesh yet: the run has not finished.</p>";
+    }
+
+    html += "<h2>Figures</h2>";
+    let options =
+        rmvp_recon::checkpoint::recorded_options(&dir.join(rmvp_recon::reconstruct::CHECKPOINT)).ok().flatten();
+    if let Some(options) = options {
+        let value = serde_json::to_value(&options).expect("options serialise");
+        html += &options_table("Options", &value);
+    }
+    let evaluation = read_json(&dir.join(EVALUATION))?;
+    if let Some(e) = &evaluation {
+        html += &evaluation_tables(e);
+    }
+    if let Some(residuals) = read_json(&dir.join(RESIDUALS))? {
+        html += &residual_table(&residuals);
+    }
+
+    html += "<h2>Training</h2>";
+    let log_path = dir.join(LOG);
+    if log_path.is_file() {
+        html += &loss_plot(&read_text(&log_path)?, &log_path)?;
+    }
+
+    html += "<h2>Views</h2>";
+    for (file, caption) in [
+        (COMPARISON, "Per training view: input S0, rendered S0, input AoP, rendered AoP (hue, by DoP), normals."),
+        (RESIDUALS_PICTURE, "Per training view: where the model's S0, S1, S2 and AoP differ from the input's."),
+    ] {
+        html += &embedded_picture(&dir.join(file), caption)?;
+    }
+    let errors = dir.join(ERROR_MAPS);
+    if errors.is_dir() {
+        let mut maps: Vec<PathBuf> = rmvp_dataset::io::input::files_under(&errors)?
+            .into_iter()
+            .filter(|name| name.ends_with("_normal_error.png") && !name.contains('/'))
+            .map(|name| errors.join(name))
+            .collect();
+        maps.sort();
+        html += "<div class=\"grid\">";
+        for map in maps {
+            let name =
+                map.file_name().map(|n| n.to_string_lossy().replace("_normal_error.png", "")).unwrap_or_default();
+            html += &embedded_picture(&map, &format!("view {name}: normal error, black 0 to white 30 degrees"))?;
+        }
+        html += "</div>";
+    }
+    html += "<pre id=\"selftest\" hidden></pre>";
+    let _ = write!(html, "<script>{}</script></body></html>", include_str!("viewer.js"));
+    let page = dir.join(PAGE);
+    write_bytes_atomically(&page, html.as_bytes())?;
+    Ok(page)
+}
+
+/// `text` with HTML's special characters escaped.
+fn escape(text: &str) -> String {
+    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// A JSON file's value, None where it does not exist.
+fn read_json(path: &Path) -> Result<Option<Value>> {
+    if !path.exists() {
+        return Ok(None);
+    }
+    let text = read_text(path)?;
+    let value = serde_json::from_str(&text).map_err(|e| rmvp_dataset::Error::format(path, format!("not JSON: {e}")))?;
+    Ok(Some(value))
+}
+
+/// A number as a table shows it.
+fn figure(v: &Value) -> String {
+    match v {
+        Value::Number(n) => match n.as_f64() {
+            Some(x) if n.is_f64() => format!("{x:.4}"),
+            _ => n.to_string(),
+        },
+        Value::String(s) => escape(s),
+        Value::Null => "".into(),
+        other => escape(&other.to_string()),
+    }
+}
+
+/// A table of the options' scalar fields, the preset's for those not set.
+fn options_table(title: &str, value: &Value) -> String {
+    let mut html = format!("<table><caption>{}</caption>", escape(title));
+    if let Value::Object(map) = value {
+        for (k, v) in map.iter().filter(|(_, v)| !v.is_object() && !v.is_array()) {
+            let shown = if v.is_null() { "<span class=\"note\">the preset's</span>".into() } else { figure(v) };
+            let _ = write!(html, "<tr><th>{}</th><td>{shown}</td></tr>", escape(k));
+        }
+    }
+    html + "</table>"
+}
+
+/// The surface figures and the normal error per view of an evaluation.
+fn evaluation_tables(e: &Value) -> String {
+    let mut html = String::from("<table><caption>Against the truth</caption>");
+    for (key, label) in [
+        ("chamfer", "Chamfer"),
+        ("accuracy", "accuracy (reconstruction to truth)"),
+        ("completeness", "completeness (truth to reconstruction)"),
+        ("fscore", "F-score"),
+        ("threshold", "F-score threshold"),
+        ("normal_mae_deg", "normal error, degrees (mean over views)"),
+    ] {
+        if let Some(v) = e.get(key) {
+            let _ = write!(html, "<tr><th>{label}</th><td>{}</td></tr>", figure(v));
+        }
+    }
+    html += "</table>";
+    if let Some(Value::Array(views)) = e.get("normal_views") {
+        html += "<table><caption>Normal error per view</caption><tr><th>view</th><th>split</th><th>degrees</th><th>pixels</th></tr>";
+        for v in views {
+            let cell = |k: &str| v.get(k).map(figure).unwrap_or_default();
+            let _ = write!(
+                html,
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                cell("view"),
+                cell("split"),
+                cell("mae_deg"),
+                cell("pixels")
+            );
+        }
+        html += "</table>";
+    }
+    html
+}
+
+/// The residuals of each training view.
+fn residual_table(residuals: &Value) -> String {
+    let mut html = String::from(
+        "<table><caption>The model against its input, per training view</caption><tr><th>view</th><th>pixels</th>\
+         <th>S0 relative error</th><th>S1</th><th>S2</th><th>S0 bias</th><th>AoP median error, degrees</th></tr>",
+    );
+    if let Value::Array(views) = residuals {
+        for v in views {
+            let cell = |k: &str| v.get(k).map(figure).unwrap_or_default();
+            let mae = |i: usize| v.get("relative_mae").and_then(|m| m.get(i)).map(figure).unwrap_or_default();
+            let _ = write!(
+                html,
+                "<tr><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td></tr>",
+                cell("view"),
+                cell("pixels"),
+                mae(0),
+                mae(1),
+                mae(2),
+                cell("relative_bias_s0"),
+                cell("aop_median_deg")
+            );
+        }
+    }
+    html + "</table>"
+}
+
+/// An image file embedded in the page with its caption (nothing where the file is absent).
+fn embedded_picture(path: &Path, caption: &str) -> Result<String> {
+    if !path.exists() {
+        return Ok(String::new());
+    }
+    let bytes = read_bytes(path)?;
+    if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        return Err(rmvp_dataset::Error::format(path, "not a PNG file").into());
+    }
+    Ok(format!(
+        "<figure><img alt=\"{0}\" src=\"data:image/png;base64,{1}\"><figcaption>{0}</figcaption></figure>",
+        escape(caption),
+        BASE64.encode(&bytes)
+    ))
+}
+
+/// The loss terms of the log (`log.jsonl`, one step a line) plotted against the iteration,
+/// log scale, as SVG.
+fn loss_plot(log: &str, path: &Path) -> Result<String> {
+    let mut series: Vec<(String, Vec<f64>)> = Vec::new();
+    let mut index: HashMap<String, usize> = HashMap::new();
+    let mut steps = 0;
+    for (n, line) in log.lines().enumerate() {
+        let step: Value = serde_json::from_str(line)
+            .map_err(|e| rmvp_dataset::Error::format(path, format!("line {}: not a step's report: {e}", n + 1)))?;
+        let mut terms: Vec<(String, f64)> =
+            vec![("loss".into(), step.get("loss").and_then(Value::as_f64).unwrap_or(f64::NAN))];
+        if let Some(Value::Object(losses)) = step.get("losses") {
+            terms.extend(losses.iter().map(|(k, v)| (k.clone(), v.as_f64().unwrap_or(f64::NAN))));
+        }
+        for (name, value) in terms {
+            let at = *index.entry(name.clone()).or_insert_with(|| {
+                series.push((name, vec![f64::NAN; steps]));
+                series.len() - 1
+            });
+            series[at].1.push(value);
+        }
+        steps += 1;
+        series.iter_mut().for_each(|(_, values)| values.resize(steps, f64::NAN));
+    }
+    if steps == 0 {
+        return Ok("<p>The log is empty.</p>".into());
+    }
+    let (w, h, left, bottom) = (760.0, 300.0, 60.0, 30.0);
+    let bucket = steps.div_ceil(CURVE_POINTS);
+    let curves: Vec<(String, Vec<(f64, f64)>)> = series
+        .iter()
+        .map(|(name, values)| {
+            let points = values
+                .chunks(bucket)
+                .enumerate()
+                .filter_map(|(i, chunk)| {
+                    let good: Vec<f64> = chunk.iter().copied().filter(|v| v.is_finite() && *v > 0.0).collect();
+                    (!good.is_empty()).then(|| ((i * bucket) as f64, good.iter().sum::<f64>() / good.len() as f64))
+                })
+                .collect();
+            (name.clone(), points)
+        })
+        .collect();
+    let all: Vec<f64> = curves.iter().flat_map(|(_, p)| p.iter().map(|q| q.1.log10())).collect();
+    let (lo, hi) = all.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+    let (lo, hi) = (lo.floor(), hi.ceil().max(lo.floor() + 1.0));
+    let x = |i: f64| left + (w - left - 10.0) * i / steps.max(1) as f64;
+    let y = |v: f64| 10.0 + (h - bottom - 10.0) * (hi - v.log10()) / (hi - lo);
+    let colours = ["#e8e8e8", "#4e9af1", "#f1a24e", "#5fd07a", "#e05d5d", "#b57be8", "#d8d05a"];
+    let mut svg =
+        format!("<svg class=\"plot\" viewBox=\"0 0 {w} {h}\" role=\"img\" aria-label=\"losses against iteration\">");
+    for decade in lo as i32..=hi as i32 {
+        let yy = y(10f64.powi(decade));
+        let _ = write!(svg, "<line x1=\"{left}\" x2=\"{}\" y1=\"{yy:.1}\" y2=\"{yy:.1}\" class=\"gridline\"/><text x=\"{}\" y=\"{:.1}\" class=\"tick\">1e{decade}</text>", w - 10.0, left - 6.0, yy + 4.0);
+    }
+    let _ =
+        write!(svg, "<text x=\"{}\" y=\"{}\" class=\"tick\">iteration (0 to {steps})</text>", w / 2.0 - 60.0, h - 8.0);
+    for (k, (name, points)) in curves.iter().enumerate() {
+        let colour = colours[k % colours.len()];
+        let path: String = points.iter().map(|&(i, v)| format!("{:.1},{:.1} ", x(i), y(v))).collect();
+        let _ = write!(svg, "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"1.5\" points=\"{path}\"/>");
+        let _ = write!(
+            svg,
+            "<text x=\"{}\" y=\"{}\" style=\"fill:{colour}\" class=\"legend\">{}</text>",
+            w - 150.0,
+            24.0 + 16.0 * k as f64,
+            escape(name)
+        );
+    }
+    Ok(svg + "</svg>")
+}
+
+/// The 3D view: the mesh (decimated to [`PAGE_TRIANGLES`] if larger) and the cameras of `scene`
+/// as frustums, in the page as base64 arrays.
+fn mesh_section(mesh: &Mesh, scene: Option<&Scene>) -> String {
+    let (positions, faces) = decimated(mesh, PAGE_TRIANGLES);
+    let (lo, hi) = mesh.bounds().unwrap_or(([-1.0; 3], [1.0; 3]));
+    let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
+    let radius = 0.5 * (0..3).map(|k| hi[k] - lo[k]).fold(0f32, f32::max).max(1e-6);
+    let mut frustums: Vec<f32> = Vec::new();
+    let mut reach = 0f32;
+    for view in scene.map(|s| s.views.as_slice()).unwrap_or_default() {
+        let c = view.camera.center();
+        let corners = [(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)].map(|(u, v)| {
+            let ray = view.camera.ray(u * view.camera.width as f64, v * view.camera.height as f64);
+            let p = ray.origin
+                + ray.direction
+                    * (0.4 * radius as f64 / ray.direction.dot(&(view.camera.r.transpose() * nalgebra::Vector3::z())));
+            [p.x as f32, p.y as f32, p.z as f32]
+        });
+        let apex = [c.x as f32, c.y as f32, c.z as f32];
+        reach = reach.max((0..3).map(|k| (apex[k] - centre[k]).powi(2)).sum::<f32>().sqrt());
+        for k in 0..4 {
+            frustums.extend(apex.iter().chain(&corners[k]));
+            frustums.extend(corners[k].iter().chain(&corners[(k + 1) % 4]));
+        }
+    }
+    let bytes_of = |values: &[u8]| BASE64.encode(values);
+    let position_bytes: Vec<u8> = positions.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    let index_bytes: Vec<u8> = faces.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+    let data = serde_json::json!({
+        "positions": bytes_of(&position_bytes),
+        "indices": bytes_of(&index_bytes),
+        "centre": centre,
+        "radius": radius,
+        "frustums": frustums,
+        "frustumReach": reach,
+    });
+    let note = if faces.len() < mesh.faces.len() {
+        format!(
+            "{} of the mesh's {} triangles drawn here (vertices merged on a grid); the full mesh is <code>{MESH}</code> beside this page.",
+            faces.len(),
+            mesh.faces.len()
+        )
+    } else {
+        format!("{} triangles, {} vertices.", mesh.faces.len(), mesh.positions.len())
+    };
+    format!(
+        "<div class=\"viewer\"><canvas id=\"mesh-view\" width=\"760\" height=\"520\"></canvas><p id=\"mesh-error\"></p>\
+         <label><input type=\"checkbox\" id=\"colour-by-normal\"> colour by normal</label> \
+         <span class=\"note\">Drag to turn, wheel to zoom; the views' cameras in orange. {note}</span></div>\
+         <script type=\"application/json\" id=\"mesh-data\">{data}</script>"
+    )
+}
+
+/// `mesh` with at most `triangles` triangles: its vertices merged on ever coarser grids over its
+/// bounds (vertex clustering) until the triangles that remain fit. Returns positions and faces.
+fn decimated(mesh: &Mesh, triangles: usize) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+    if mesh.faces.len() <= triangles {
+        return (mesh.positions.clone(), mesh.faces.clone());
+    }
+    let (lo, hi) = mesh.bounds().unwrap_or(([0.0; 3], [1.0; 3]));
+    let size = (0..3).map(|k| hi[k] - lo[k]).fold(0f32, f32::max).max(1e-9);
+    let mut cells = 512usize;
+    loop {
+        let mut cluster: HashMap<[u32; 3], u32> = HashMap::new();
+        let mut sums: Vec<([f64; 3], u32)> = Vec::new();
+        let remap: Vec<u32> = mesh
+            .positions
+            .iter()
+            .map(|p| {
+                let key = [0, 1, 2].map(|k| (((p[k] - lo[k]) / size * cells as f32) as u32).min(cells as u32 - 1));
+                let id = *cluster.entry(key).or_insert_with(|| {
+                    sums.push(([0.0; 3], 0));
+                    sums.len() as u32 - 1
+                });
+                let s = &mut sums[id as usize];
+                (0..3).for_each(|k| s.0[k] += p[k] as f64);
+                s.1 += 1;
+                id
+            })
+            .collect();
+        let faces: Vec<[u32; 3]> = mesh
+            .faces
+            .iter()
+            .map(|f| f.map(|v| remap[v as usize]))
+            .filter(|f| f[0] != f[1] && f[1] != f[2] && f[0] != f[2])
+            .collect();
+        if faces.len() <= triangles || cells <= 16 {
+            let positions = sums.iter().map(|(s, n)| s.map(|v| (v / *n as f64) as f32)).collect();
+            return (positions, faces);
+        }
+        cells = cells * 3 / 4;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_large_mesh_is_decimated_to_the_page_and_keeps_its_shape() {
+        let mesh = rmvp_render::shapes::icosphere(7);
+        assert!(mesh.faces.len() > 300_000);
+        let (positions, faces) = decimated(&mesh, 50_000);
+        assert!(faces.len() <= 50_000 && faces.len() > 20_000, "{} triangles", faces.len());
+        let worst = positions
+            .iter()
+            .map(|p| ((p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 1.0).abs())
+            .fold(0f32, f32::max);
+        assert!(worst < 0.01, "a vertex {worst} off the sphere");
+        assert!(faces.iter().flatten().all(|&v| (v as usize) < positions.len()));
+    }
+
+    #[test]
+    fn names_from_files_are_escaped() {
+        assert_eq!(escape("<img src=x onerror=\"a&b\">"), "&lt;img src=x onerror=&quot;a&amp;b&quot;&gt;");
+    }
+}
