@@ -297,6 +297,13 @@ fn a_slurm_array_preempted_failed_resubmitted_gathered_as_locally() {
         let local = std::fs::read(local_dir.join("tasks/spot_nersp-full-s0").join(file)).unwrap();
         assert!(std::fs::read(task0.join(file)).unwrap() == local, "{file} differs after preemption");
     }
+    // The batch's page lists each task, linking to the task's own page.
+    let page = std::fs::read_to_string(local_dir.join("report.html")).unwrap();
+    assert_eq!(local_table.results.len(), 4);
+    for result in &local_table.results {
+        let link = format!("tasks/{}/report.html", result.task.id);
+        assert!(page.contains(&link) && local_dir.join(&link).is_file(), "{link}");
+    }
     // Re-running a complete plan does nothing.
     let out = cluster.rmvp_ok(&["batch", "run", plan_s, "-o", local_dir.to_str().unwrap(), "--local"]);
     assert!(out.contains("0 finished, 4 already complete"), "{out}");

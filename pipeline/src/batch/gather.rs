@@ -6,6 +6,7 @@
 use super::chart::{bar_chart, Bar};
 use super::plan::BatchPlan;
 use super::task::{task_state, TaskResult, TaskState};
+use crate::report::{write_batch_report, TaskRow};
 use crate::Result;
 use rmvp_dataset::io::json::write_json;
 use rmvp_dataset::io::{png, write_bytes_atomically};
@@ -154,7 +155,21 @@ pub fn gather(dir: &Path) -> Result<BatchTable> {
         })
         .collect();
     let picture = bar_chart("normal MAE (deg), mean and spread over seeds", &groups, &series, &bars);
-    png::write_png_u8(&dir.join(format!("{RESULTS_STEM}.png")), &picture)?;
+    let chart = dir.join(format!("{RESULTS_STEM}.png"));
+    png::write_png_u8(&chart, &picture)?;
+    let tasks: Vec<TaskRow> = table
+        .results
+        .iter()
+        .map(|r| TaskRow {
+            id: r.task.id.clone(),
+            dataset: r.task.dataset.clone(),
+            variant: r.task.variant.name.clone(),
+            seed: r.task.seed,
+            figures: r.evaluation.as_ref().map(|e| (e.surface.chamfer, e.surface.fscore, e.normal_mae_deg)),
+            minutes: r.minutes(),
+        })
+        .collect();
+    write_batch_report(dir, &tasks, &chart)?;
     Ok(table)
 }
 

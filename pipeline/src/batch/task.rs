@@ -7,13 +7,16 @@
 //! tasks/ID/checkpoint.bin  log.jsonl mesh.ply normals/ stokes/ comparison.png: `rmvp recon`'s
 //! tasks/ID/sessions.json   runs so far and their training time (a preempted task's clock)
 //! tasks/ID/normal_errors/  normal error maps per view (black 0 to white 30 degrees)
+//! tasks/ID/evaluation.json the evaluation; report.html the task's page
 //! tasks/ID/result.json     written last: the task, times, evaluation ([`TaskResult`])
 //! tasks/ID/failed.json     instead, when it failed: the error ([`TaskFailure`])
 //! ```
 
 use super::plan::{BatchPlan, Task};
+use crate::report;
 use crate::{Error, Result};
 use rmvp_align::{evaluate, Evaluation};
+use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::options::RunControl;
@@ -220,11 +223,13 @@ fn run_reconstruction(
         })?;
         let predicted = rmvp_align::surface::read_surface(&folder.join(MESH))?;
         let evaluation = evaluate(&predicted, truth, Some(&scene), &plan.evaluation.surface_options())?;
-        evaluation.write_error_maps(&folder.join("normal_errors"))?;
+        evaluation.write_error_maps(&folder.join(report::ERROR_MAPS))?;
+        write_bytes_atomically(&folder.join(report::EVALUATION), evaluation.to_json().as_bytes())?;
         Some(evaluation)
     } else {
         None
     };
+    report::write_recon_report(folder, Some(&scene))?;
     let result = TaskResult {
         format: RESULT_FORMAT.into(),
         task: task.clone(),

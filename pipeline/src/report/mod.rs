@@ -21,8 +21,9 @@ use std::path::{Path, PathBuf};
 pub const PAGE: &str = "report.html";
 /// The evaluation a run's folder may hold (`rmvp eval --json`, the demo, the quality bench).
 pub const EVALUATION: &str = "evaluation.json";
-/// The normal error maps a run's folder may hold (`rmvp eval -o DIR/errors`).
-pub const ERROR_MAPS: &str = "errors";
+/// The normal error maps a run's folder may hold (`rmvp eval -o DIR/normal_errors`, a batch's
+/// task, the quality bench).
+pub const ERROR_MAPS: &str = "normal_errors";
 /// Triangles of the mesh the page draws at most.
 pub const PAGE_TRIANGLES: usize = 200_000;
 
@@ -97,6 +98,57 @@ pub fn write_recon_report(dir: &Path, scene: Option<&Scene>) -> Result<PathBuf> 
     }
     html += "<pre id=\"selftest\" hidden></pre>";
     let _ = write!(html, "<script>{}</script></body></html>", include_str!("viewer.js"));
+    let page = dir.join(PAGE);
+    write_bytes_atomically(&page, html.as_bytes())?;
+    Ok(page)
+}
+
+/// One finished task of a batch, as its page lists it.
+pub struct TaskRow {
+    /// The task's id, its folder under `tasks/`.
+    pub id: String,
+    /// Dataset, variant and seed.
+    pub dataset: String,
+    /// The variant's name.
+    pub variant: String,
+    /// The seed.
+    pub seed: u64,
+    /// Chamfer, F-score and normal error in degrees, where evaluated.
+    pub figures: Option<(f64, f64, Option<f64>)>,
+    /// Training and outputs, minutes.
+    pub minutes: f64,
+}
+
+/// Write `dir/report.html` for a batch: one row per finished task (sortable by any column,
+/// each linking to the task's own page), after the batch's chart `chart` (a PNG beside it).
+pub fn write_batch_report(dir: &Path, tasks: &[TaskRow], chart: &Path) -> Result<PathBuf> {
+    let mut html = String::new();
+    let _ = write!(html, "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>batch</title>");
+    let _ = write!(
+        html,
+        "<style>{}</style></head><body><h1>Batch: {} tasks finished</h1>",
+        include_str!("style.css"),
+        tasks.len()
+    );
+    html += &embedded_picture(chart, "Normal error by dataset and variant, mean and spread over seeds.")?;
+    html += "<table id=\"tasks\"><caption>Tasks (click a column to sort)</caption><tr><th>task</th><th>dataset</th>\
+             <th>variant</th><th>seed</th><th>Chamfer</th><th>F-score</th><th>normal error, degrees</th><th>minutes</th></tr>";
+    for t in tasks {
+        let (chamfer, fscore, normal) = match t.figures {
+            Some((c, f, n)) => (format!("{c:.4}"), format!("{f:.3}"), n.map_or(String::new(), |n| format!("{n:.2}"))),
+            None => Default::default(),
+        };
+        let _ = write!(
+            html,
+            "<tr><td><a href=\"tasks/{0}/{PAGE}\">{0}</a></td><td>{1}</td><td>{2}</td><td>{3}</td><td>{chamfer}</td><td>{fscore}</td><td>{normal}</td><td>{4:.1}</td></tr>",
+            escape(&t.id),
+            escape(&t.dataset),
+            escape(&t.variant),
+            t.seed,
+            t.minutes
+        );
+    }
+    let _ = write!(html, "</table><script>{}</script></body></html>", include_str!("sort.js"));
     let page = dir.join(PAGE);
     write_bytes_atomically(&page, html.as_bytes())?;
     Ok(page)
