@@ -31,6 +31,7 @@ fn changed(field: &str) -> (&'static str, &'static str) {
         "coarse_samples" => ("20", "20"),
         "fine_samples" => ("12", "12"),
         "min_sample_weight" => ("0.001", "0.001"),
+        "regularised_left_out" => ("2", "2"),
         "margin" => ("5", "5"),
         "grid_level_decay" => ("0.8", "0.8"),
         "aop_reliability" => ("0.05", "0.05"),

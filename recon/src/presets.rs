@@ -112,7 +112,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
     let (batch_rays, sampling, adam) = match preset {
         Preset::Paper => (
             512,
-            Sampling { coarse: 64, fine: 64, steps: 4, min_weight: 0.0 },
+            Sampling { coarse: 64, fine: 64, steps: 4, min_weight: 0.0, regularised_left_out: 0 },
             AdamConfig {
                 lr_network: 5e-4,
                 lr_grid: 0.0,
@@ -124,7 +124,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         ),
         Preset::Fast | Preset::Dense => (
             if preset == Preset::Dense { 512 } else { 256 },
-            Sampling { coarse: 32, fine: 32, steps: 4, min_weight: MIN_SAMPLE_WEIGHT },
+            Sampling { coarse: 32, fine: 32, steps: 4, min_weight: MIN_SAMPLE_WEIGHT, regularised_left_out: 0 },
             AdamConfig {
                 lr_network: 2e-3,
                 lr_grid: 1e-2,

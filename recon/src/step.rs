@@ -37,18 +37,13 @@ pub struct Batch {
     /// The SDF on a coarse grid, read where it shows the surface to be far (None: the field
     /// everywhere).
     pub occupancy: Option<Arc<OccupancyGrid>>,
-    /// For each ray, [`REGULARISED_LEFT_OUT`] numbers in `[0, 1)` that pick the samples left
-    /// out of the step that the regularisers still see (empty where every sample is rendered).
+    /// For each ray, [`Sampling::regularised_left_out`](crate::volume::Sampling) numbers in
+    /// `[0, 1)` that pick the samples left out of the step that the regularisers still see
+    /// (empty where every sample is rendered or none is drawn). Each stands for its share of
+    /// the samples left out, so that the regularisers' expected gradient is the one they have
+    /// when every sample is rendered.
     pub left_out_draws: Vec<f32>,
 }
-
-/// Samples a step leaves out on each ray that the Eikonal and curvature terms still see, drawn
-/// at random among those left out, each standing for its share of them: the regularisers'
-/// expected gradient is the one they have when every sample is rendered, so the field stays a
-/// distance field away from the surfaces and behind them, where no view looks. (Without them a
-/// start blob left in space that no view sees stays there: the evaluation set's ring grows a
-/// skirt below its underside.)
-pub const REGULARISED_LEFT_OUT: usize = 2;
 
 /// What a step's compute returns.
 #[derive(Clone, Debug)]
@@ -221,19 +216,20 @@ impl Step<'_> {
         let mut grad = vec![0f32; model.network_params()];
         let mut grid = fwd.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
         let draws = &self.batch.left_out_draws;
-        if !draws.is_empty() {
+        let per_ray = config.sampling.regularised_left_out;
+        if !draws.is_empty() && per_ray > 0 {
             // Each ray's draws pick among its samples left out; each stands for its share of
             // the samples the ray would take rendering every one.
             let every = config.sampling.coarse + config.sampling.fine;
-            let draws = &draws[REGULARISED_LEFT_OUT * range.start..REGULARISED_LEFT_OUT * range.end];
+            let draws = &draws[per_ray * range.start..per_ray * range.end];
             let (mut points, mut shares) = (Vec::new(), Vec::new());
             for ((ray, (rendered, left_out)), u) in
-                rays.iter().zip(depths.iter().zip(&samples.left_out)).zip(draws.chunks_exact(REGULARISED_LEFT_OUT))
+                rays.iter().zip(depths.iter().zip(&samples.left_out)).zip(draws.chunks_exact(per_ray))
             {
                 if left_out.is_empty() {
                     continue;
                 }
-                let share = every.saturating_sub(rendered.len()) as f32 / REGULARISED_LEFT_OUT as f32;
+                let share = every.saturating_sub(rendered.len()) as f32 / per_ray as f32;
                 for &u in u {
                     let pick = ((u * left_out.len() as f32) as usize).min(left_out.len() - 1);
                     points.extend(ray.at(left_out[pick]));
@@ -267,10 +263,6 @@ impl Step<'_> {
             .iter()
             .zip(&scales)
             .map(|(&l, &scale)| {
-                static NOCURV: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-                if *NOCURV.get_or_init(|| std::env::var("RMVP_NOCURV").is_ok()) {
-                    return 0.0;
-                }
                 let (loss, d) = curvature(l);
                 sums.losses[Term::Curvature] += (loss * scale) as f64;
                 w[Term::Curvature] * d * scale

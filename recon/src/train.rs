@@ -12,7 +12,7 @@ use crate::engine::Adam;
 use crate::losses::PerTerm;
 use crate::model::Model;
 use crate::occupancy::{OccupancyGrid, REFRESH_EVERY};
-use crate::step::{Batch, CpuStep, StepCompute, StepGradient, REGULARISED_LEFT_OUT};
+use crate::step::{Batch, CpuStep, StepCompute, StepGradient};
 use rmvp_dataset::rng::Rng;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -162,7 +162,8 @@ impl Trainer {
         let warm = self.warming_up();
         let use_geometric = self.config.geometric && !warm;
         let occupancy = self.occupancy.clone();
-        let draws = if self.config.sampling.skips_empty_space() { REGULARISED_LEFT_OUT * batch.len() } else { 0 };
+        let sampling = self.config.sampling;
+        let draws = if sampling.skips_empty_space() { sampling.regularised_left_out * batch.len() } else { 0 };
         let left_out_draws = (0..draws).map(|_| rng.next_f32()).collect();
         let batch =
             Batch { rays: batch, jitter, level_weight, fd_step, warm, use_geometric, occupancy, left_out_draws };

@@ -260,11 +260,12 @@ fn without_the_photometric_cue_the_tangent_loss_takes_each_aop_as_measured() {
 #[test]
 fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_rendered() {
     use rmvp_recon::losses::Term;
-    use rmvp_recon::step::{Batch, CpuStep, StepCompute, REGULARISED_LEFT_OUT};
+    use rmvp_recon::step::{Batch, CpuStep, StepCompute};
     let scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
     let mut config = small_config(200);
     config.batch_rays = 64;
     config.diffuse_only = 0;
+    config.sampling.regularised_left_out = 2;
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     let mut trainer = Trainer::new(config.clone(), set.clone());
     for _ in 0..30 {
@@ -299,7 +300,7 @@ fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_re
     let mut estimates = Vec::new();
     let mut taken = 0;
     for _ in 0..draws {
-        batch.left_out_draws = (0..REGULARISED_LEFT_OUT * batch.rays.len()).map(|_| rng.next_f32()).collect();
+        batch.left_out_draws = (0..2 * batch.rays.len()).map(|_| rng.next_f32()).collect();
         let weighted = CpuStep.gradient(model, params, &set, &config, &batch);
         taken = weighted.samples;
         estimates.push(regularisers(&weighted));
