@@ -38,7 +38,9 @@ def test_ctrl_c_stops_a_run_that_then_resumes(fixtures, tmp_path):
     out = tmp_path / "run"
     child = textwrap.dedent(
         f"""
-        import time, rmvp
+        import signal, time, rmvp
+        # As in a terminal's Python, whatever the test runner's parent ignores.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         def progress(step):
             print(step["iteration"], flush=True)
             time.sleep(0.05)
