@@ -27,6 +27,10 @@ pub const ERROR_MAPS: &str = "normal_errors";
 /// Triangles of the mesh the page draws at most.
 pub const PAGE_TRIANGLES: usize = 200_000;
 
+/// The largest picture embedded in a page; larger ones (a 1224x1024 capture's contact sheets)
+/// are shown from their files beside it, so that the page stays small.
+const EMBEDDED_BYTES: usize = 2 << 20;
+
 /// Most points of a loss curve (the log is averaged over buckets beyond).
 const CURVE_POINTS: usize = 600;
 
@@ -78,21 +82,20 @@ pub fn write_recon_report(dir: &Path, scene: Option<&Scene>) -> Result<PathBuf> 
         (COMPARISON, "Per training view: input S0, rendered S0, input AoP, rendered AoP (hue, by DoP), normals."),
         (RESIDUALS_PICTURE, "Per training view: where the model's S0, S1, S2 and AoP differ from the input's."),
     ] {
-        html += &embedded_picture(&dir.join(file), caption)?;
+        html += &picture(dir, file, caption)?;
     }
     let errors = dir.join(ERROR_MAPS);
     if errors.is_dir() {
-        let mut maps: Vec<PathBuf> = rmvp_dataset::io::input::files_under(&errors)?
+        let mut maps: Vec<String> = rmvp_dataset::io::input::files_under(&errors)?
             .into_iter()
             .filter(|name| name.ends_with("_normal_error.png") && !name.contains('/'))
-            .map(|name| errors.join(name))
             .collect();
         maps.sort();
         html += "<div class=\"grid\">";
         for map in maps {
-            let name =
-                map.file_name().map(|n| n.to_string_lossy().replace("_normal_error.png", "")).unwrap_or_default();
-            html += &embedded_picture(&map, &format!("view {name}: normal error, black 0 to white 30 degrees"))?;
+            let view = map.trim_end_matches("_normal_error.png");
+            let caption = format!("view {view}: normal error, black 0 to white 30 degrees");
+            html += &picture(dir, &format!("{ERROR_MAPS}/{map}"), &caption)?;
         }
         html += "</div>";
     }
@@ -130,7 +133,8 @@ pub fn write_batch_report(dir: &Path, tasks: &[TaskRow], chart: &Path) -> Result
         include_str!("style.css"),
         tasks.len()
     );
-    html += &embedded_picture(chart, "Normal error by dataset and variant, mean and spread over seeds.")?;
+    let chart_name = chart.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    html += &picture(dir, &chart_name, "Normal error by dataset and variant, mean and spread over seeds.")?;
     html += "<table id=\"tasks\"><caption>Tasks (click a column to sort)</caption><tr><th>task</th><th>dataset</th>\
              <th>variant</th><th>seed</th><th>Chamfer</th><th>F-score</th><th>normal error, degrees</th><th>minutes</th></tr>";
     for t in tasks {
@@ -254,20 +258,23 @@ fn residual_table(residuals: &Value) -> String {
     html + "</table>"
 }
 
-/// An image file embedded in the page with its caption (nothing where the file is absent).
-fn embedded_picture(path: &Path, caption: &str) -> Result<String> {
+/// A picture file of `dir` at `name` (a relative path) in the page with its caption: embedded up
+/// to [`EMBEDDED_BYTES`], larger ones shown from beside the page (nothing where it is absent).
+fn picture(dir: &Path, name: &str, caption: &str) -> Result<String> {
+    let path = dir.join(name);
     if !path.exists() {
         return Ok(String::new());
     }
-    let bytes = read_bytes(path)?;
+    let bytes = read_bytes(&path)?;
     if !bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
-        return Err(rmvp_dataset::Error::format(path, "not a PNG file").into());
+        return Err(rmvp_dataset::Error::format(&path, "not a PNG file").into());
     }
-    Ok(format!(
-        "<figure><img alt=\"{0}\" src=\"data:image/png;base64,{1}\"><figcaption>{0}</figcaption></figure>",
-        escape(caption),
-        BASE64.encode(&bytes)
-    ))
+    let source = if bytes.len() <= EMBEDDED_BYTES {
+        format!("data:image/png;base64,{}", BASE64.encode(&bytes))
+    } else {
+        escape(name)
+    };
+    Ok(format!("<figure><img alt=\"{0}\" src=\"{source}\"><figcaption>{0}</figcaption></figure>", escape(caption)))
 }
 
 /// The loss terms of the log (`log.jsonl`, one step a line) plotted against the iteration,
