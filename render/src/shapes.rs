@@ -131,16 +131,7 @@ pub fn torus_knot(p: u32, q: u32, tube: f64, segments: usize, sides: usize) -> M
             positions.push([0, 1, 2].map(|k| c[k] + offset[k]));
         }
     }
-    let mut faces = Vec::with_capacity(2 * segments * sides);
-    for i in 0..segments {
-        for j in 0..sides {
-            let at = |i: usize, j: usize| ((i % segments) * sides + j % sides) as u32;
-            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
-            // Counter-clockwise seen from outside the tube.
-            faces.extend([[a, c, b], [a, d, c]]);
-        }
-    }
-    unit_sphere_mesh(positions, faces)
+    unit_sphere_mesh(positions, tube_faces(segments, sides))
 }
 
 /// A ring lying in the XZ plane around +Y (a pool float): a tube of radius `tube` around a
@@ -155,6 +146,12 @@ pub fn torus(tube: f64, segments: usize, sides: usize) -> Mesh {
             positions.push([r * ca, tube * sb, r * sa]);
         }
     }
+    unit_sphere_mesh(positions, tube_faces(segments, sides))
+}
+
+/// The triangles of a closed tube of `segments` rings of `sides` vertices each, stored ring by
+/// ring, counter-clockwise seen from outside for the rings of [`torus`] and [`torus_knot`].
+fn tube_faces(segments: usize, sides: usize) -> Vec<[u32; 3]> {
     let mut faces = Vec::with_capacity(2 * segments * sides);
     for i in 0..segments {
         for j in 0..sides {
@@ -163,7 +160,7 @@ pub fn torus(tube: f64, segments: usize, sides: usize) -> Mesh {
             faces.extend([[a, c, b], [a, d, c]]);
         }
     }
-    unit_sphere_mesh(positions, faces)
+    faces
 }
 
 /// A star-shaped prism with `teeth` sharp teeth (outer radius 1, inner `inner`), `height`
