@@ -193,26 +193,8 @@ impl Step<'_> {
                 grads[*r].normal = dn.map(|d| d * w[Term::Geometric] / norm.masked);
             }
         }
-        // Eikonal on every sample's finite-difference gradient.
-        let mut d_gradients = vec![0f32; fwd.field.gradients.len()];
-        for (g, d) in fwd.field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)) {
-            let (loss, dg) = eikonal([g[0], g[1], g[2]]);
-            sums.losses[Term::Eikonal] += loss as f64 / norm.samples as f64;
-            for k in 0..3 {
-                d[k] = w[Term::Eikonal] * dg[k] / norm.samples;
-            }
-        }
-        // Curvature on every sample's finite-difference Laplacian.
-        let d_laplacians: Vec<f32> = fwd
-            .field
-            .laplacians
-            .iter()
-            .map(|&l| {
-                let (loss, d) = curvature(l);
-                sums.losses[Term::Curvature] += loss as f64 / norm.samples as f64;
-                w[Term::Curvature] * d / norm.samples
-            })
-            .collect();
+        // Eikonal and curvature on every sample's finite differences, each sample once.
+        let (d_gradients, d_laplacians) = self.regulariser_gradients(&fwd.field, |_| 1.0, &mut sums);
         let mut grad = vec![0f32; model.network_params()];
         let mut grid = fwd.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
         let draws = &self.batch.left_out_draws;
@@ -248,26 +230,7 @@ impl Step<'_> {
     fn regularise(&self, points: Vec<f32>, shares: &[f32], sums: &mut ChunkSums, grad: &mut [f32]) -> GridGradient {
         let batch = self.batch;
         let field = FieldSamples::evaluate(self.model, self.params, &batch.level_weight, points, batch.fd_step);
-        let w = &self.config.weights;
-        let scales: Vec<f32> = shares.iter().map(|s| s / self.norm.samples).collect();
-        let mut d_gradients = vec![0f32; field.gradients.len()];
-        for ((g, d), &scale) in field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)).zip(&scales) {
-            let (loss, dg) = eikonal([g[0], g[1], g[2]]);
-            sums.losses[Term::Eikonal] += (loss * scale) as f64;
-            for k in 0..3 {
-                d[k] = w[Term::Eikonal] * dg[k] * scale;
-            }
-        }
-        let d_laplacians: Vec<f32> = field
-            .laplacians
-            .iter()
-            .zip(&scales)
-            .map(|(&l, &scale)| {
-                let (loss, d) = curvature(l);
-                sums.losses[Term::Curvature] += (loss * scale) as f64;
-                w[Term::Curvature] * d * scale
-            })
-            .collect();
+        let (d_gradients, d_laplacians) = self.regulariser_gradients(&field, |i| shares[i], sums);
         let zeros = |n: usize| vec![0f32; n];
         let d = FieldGrad {
             sdf: &zeros(field.sdf.len()),
@@ -277,5 +240,37 @@ impl Step<'_> {
             laplacians: &d_laplacians,
         };
         field.backward(self.model, self.params, &d, grad)
+    }
+
+    /// The Eikonal term on `field`'s finite-difference gradients and the curvature term on its
+    /// Laplacians, point `i` weighing `share(i)` samples (of the step's every-sample count):
+    /// their losses added to `sums`, and their gradients with respect to the gradients (n x 3)
+    /// and the Laplacians (n).
+    fn regulariser_gradients(
+        &self,
+        field: &FieldSamples,
+        share: impl Fn(usize) -> f32,
+        sums: &mut ChunkSums,
+    ) -> (Vec<f32>, Vec<f32>) {
+        let (w, samples) = (&self.config.weights, self.norm.samples);
+        let mut d_gradients = vec![0f32; field.gradients.len()];
+        for (i, (g, d)) in field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)).enumerate() {
+            let (loss, dg) = eikonal([g[0], g[1], g[2]]);
+            sums.losses[Term::Eikonal] += (loss * share(i)) as f64 / samples as f64;
+            for k in 0..3 {
+                d[k] = w[Term::Eikonal] * dg[k] * share(i) / samples;
+            }
+        }
+        let d_laplacians = field
+            .laplacians
+            .iter()
+            .enumerate()
+            .map(|(i, &l)| {
+                let (loss, d) = curvature(l);
+                sums.losses[Term::Curvature] += (loss * share(i)) as f64 / samples as f64;
+                w[Term::Curvature] * d * share(i) / samples
+            })
+            .collect();
+        (d_gradients, d_laplacians)
     }
 }
