@@ -58,7 +58,8 @@ enum Command {
     Dataset(dataset::Command),
     /// Reconstruct a scene with NeRSP: mesh, normal maps, re-rendered Stokes.
     Recon(recon::Args),
-    /// A reconstruction's page, report.html: the mesh in 3D, the losses, the figures, the views.
+    /// A page, report.html: a reconstruction (the mesh in 3D, the losses, the figures, the views), a
+    /// built dataset or release (the datasheet, the truth in 3D, the views) or a batch.
     Report(report::Args),
     /// Align a scan onto a target mesh by a similarity (ICP with scale).
     Align(align::Args),

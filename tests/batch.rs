@@ -304,6 +304,13 @@ fn a_slurm_array_preempted_failed_resubmitted_gathered_as_locally() {
         let link = format!("tasks/{}/report.html", result.task.id);
         assert!(page.contains(&link) && local_dir.join(&link).is_file(), "{link}");
     }
+    // `rmvp report` writes it again, as `batch gather` does.
+    std::fs::remove_file(local_dir.join("report.html")).unwrap();
+    let written = cluster.rmvp_ok(&["report", local_dir.to_str().unwrap()]);
+    assert!(
+        written.trim().ends_with("report.html")
+            && std::fs::read_to_string(local_dir.join("report.html")).unwrap() == page
+    );
     // Re-running a complete plan does nothing.
     let out = cluster.rmvp_ok(&["batch", "run", plan_s, "-o", local_dir.to_str().unwrap(), "--local"]);
     assert!(out.contains("0 finished, 4 already complete"), "{out}");

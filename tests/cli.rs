@@ -50,6 +50,10 @@ fn demo_captures_builds_a_dataset_and_reconstructs_it() {
     for file in ["mesh.ply", "log.jsonl", "checkpoint.bin", "evaluation.json", "report.html"] {
         assert!(out.join("recon").join(file).is_file(), "{file}");
     }
+    // Training tracked its normal error against the truth; the dataset has its page too.
+    let log = std::fs::read_to_string(out.join("recon/log.jsonl")).unwrap();
+    assert!(log.lines().last().unwrap().contains("\"normal_error_deg\":"), "{log}");
+    assert!(out.join("dataset/report.html").is_file());
     // The page (tests/report.rs opens one in a browser) stays small.
     assert!(std::fs::metadata(out.join("recon/report.html")).unwrap().len() < 20 << 20);
     // --mesh-only: no view outputs (`rmvp recon`'s own test covers them).

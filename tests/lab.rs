@@ -28,6 +28,8 @@ use rmvp_render::envmap::procedural_image;
 use rmvp_render::EnvMap;
 use std::path::Path;
 
+#[path = "common/browser.rs"]
+mod browser;
 mod common;
 use common::{fails, ok, s};
 
@@ -213,6 +215,17 @@ fn a_lab_session_becomes_posed_masked_views() {
     let datasheet = std::fs::read_to_string(release.join("README.md")).unwrap();
     assert!(datasheet.contains("CC-BY-4.0") && datasheet.contains("charuco") && datasheet.contains("scan.ply"));
     assert!(tmp.path().join("release.tar").is_file() && release.join("lab/contact/normals.png").is_file());
+    // The pages of the build and of the release: the datasheet, the true surface in 3D with
+    // the cameras (drawn from two directions in a browser), every view, the checksums.
+    let html = std::fs::read_to_string(release.join("report.html")).unwrap();
+    assert!(html.contains("CC-BY-4.0") && html.contains("<table>") && html.contains("<code>SHA256SUMS</code>"));
+    assert_eq!(html.matches("<figcaption>view ").count(), 24, "a picture of every view");
+    assert_eq!(html.matches("(training)</figcaption>").count(), 6);
+    let result = browser::selftest(&release.join("report.html"), &tmp.path().join("profile"));
+    assert!(result["errors"] == serde_json::json!([]) && result["views"].as_array().unwrap().len() == 1, "{result}");
+    assert!(browser::covered(&result["views"][0]).iter().all(|&c| c > 0.02 && c < 0.9), "{result}");
+    let built = std::fs::read_to_string(dataset.join("report.html")).unwrap();
+    assert!(built.contains("| reference |") || built.contains("<td>reference</td>"), "the build's stages");
 
     // The release's ground truth against the simulator's: the mesh within 0.3 % of the object's
     // size, the normals within 1.5 degrees (median), the environment map as the renderer's.

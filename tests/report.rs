@@ -1,38 +1,13 @@
 //! The page `rmvp recon` writes beside its results (`report.html`), opened offline in headless
-//! Chromium (Debian `chromium`, installed by `scripts/install-system-deps.sh test`): no error,
-//! the 3D view draws the mesh from two directions, the plot, tables and pictures are there.
+//! Chromium: no error, the 3D view draws the mesh from two directions and colours it by its
+//! distance to the truth, the plots, tables and pictures are there.
 
 use rmvp_testkit::fixture;
-use std::process::Command;
 
 mod common;
 use common::{fails, ok, s};
-
-/// The page's DOM after its scripts ran, with `#selftest` in the address.
-fn rendered_dom(page: &std::path::Path, profile: &std::path::Path) -> String {
-    let chromium = ["chromium", "chromium-browser", "google-chrome"]
-        .into_iter()
-        .find(|c| Command::new(c).arg("--version").output().is_ok_and(|o| o.status.success()))
-        .expect("Chromium is needed for this test: run scripts/install-system-deps.sh test");
-    let out = Command::new(chromium)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--enable-unsafe-swiftshader",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--virtual-time-budget=8000",
-            "--dump-dom",
-        ])
-        .arg(format!("--user-data-dir={}", profile.display()))
-        .arg(format!("file://{}#selftest", page.display()))
-        .output()
-        .unwrap();
-    String::from_utf8_lossy(&out.stdout).into_owned()
-}
+#[path = "common/browser.rs"]
+mod browser;
 
 #[test]
 fn a_reconstructions_page_shows_the_mesh_in_3d_its_losses_and_figures_offline() {
@@ -51,17 +26,26 @@ fn a_reconstructions_page_shows_the_mesh_in_3d_its_losses_and_figures_offline() 
     assert!(html.contains("<caption>Options</caption>") && html.contains("The model against its input"));
     assert!(html.matches("src=\"data:image/png;base64,").count() >= 2, "comparison and residual pictures");
 
-    let dom = rendered_dom(&page, &tmp.path().join("profile"));
-    let selftest = dom
-        .split("<pre id=\"selftest\" hidden=\"\">")
-        .nth(1)
-        .and_then(|rest| rest.split("</pre>").next())
-        .unwrap_or_else(|| panic!("no self-test in the page: {}", &dom[..dom.len().min(500)]));
-    let result: serde_json::Value = serde_json::from_str(selftest).unwrap();
+    // The normal error against the truth, measured at the run's last iteration, plotted.
+    assert!(html.contains("aria-label=\"normal error against iteration\"") && html.contains("<circle"));
+
+    let result = browser::selftest(&page, &tmp.path().join("profile"));
     assert_eq!(result["errors"], serde_json::json!([]), "{result}");
-    // The spot (a blob after 40 iterations) covers part of the canvas from both directions.
-    let covered: Vec<f64> = result["covered"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
-    assert!(covered.len() == 2 && covered.iter().all(|&c| c > 0.02 && c < 0.9), "{result}");
+    // The spot (a blob after 40 iterations) covers part of the canvas from both directions;
+    // coloured by its distance to the truth, most of it is far (the ramp's warm half: beyond
+    // the F-score threshold).
+    let view = &result["views"][0];
+    assert!(browser::covered(view).iter().all(|&c| c > 0.02 && c < 0.9), "{result}");
+    let blob_warm = view["byError"]["warm"].as_f64().unwrap();
+    // The truth itself as the reconstruction: all of it cold.
+    let truth = out.join("truth-as-mesh");
+    std::fs::create_dir(&truth).unwrap();
+    std::fs::copy(scene.join("gt/mesh.ply"), truth.join("mesh.ply")).unwrap();
+    ok(&["report", s(&truth), "--scene", s(&scene)]);
+    let result = browser::selftest(&truth.join("report.html"), &tmp.path().join("profile"));
+    let truth_warm = result["views"][0]["byError"]["warm"].as_f64().unwrap();
+    eprintln!("coloured by error, the share of warm pixels: the blob {blob_warm:.3}, the truth {truth_warm:.3}");
+    assert!(blob_warm > 0.3 && truth_warm < 0.01, "warm share: the blob {blob_warm:.3}, the truth {truth_warm:.3}");
 
     // Again from the folder alone, with the scene's cameras.
     std::fs::remove_file(&page).unwrap();

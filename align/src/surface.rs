@@ -84,6 +84,19 @@ fn sample_count(mesh: &Mesh, options: &SurfaceOptions) -> usize {
     }
 }
 
+/// The F-score threshold for the ground truth `gt` where none is given: 1 % of its bounding
+/// box's diagonal (None for a mesh without vertices).
+pub fn default_threshold(gt: &Mesh) -> Option<f64> {
+    let (lo, hi) = gt.bounds()?;
+    Some(0.01 * (0..3).map(|k| ((hi[k] - lo[k]) as f64).powi(2)).sum::<f64>().sqrt())
+}
+
+/// Distances from each point of `points` to the surface of `mesh` (the ground truth), e.g. to
+/// colour a reconstruction's vertices by their error.
+pub fn distances_to_surface(mesh: &Mesh, points: &[[f32; 3]]) -> Result<Vec<f64>> {
+    Ok(distances(&trimesh(mesh, "ground-truth")?, points))
+}
+
 /// Distances from each point to the surface of `mesh`.
 fn distances(mesh: &TriMesh, points: &[[f32; 3]]) -> Vec<f64> {
     points.par_iter().map(|p| mesh.distance_to_local_point(Vector::new(p[0], p[1], p[2]), true) as f64).collect()
@@ -94,10 +107,7 @@ pub fn surface_metrics(pred: &Mesh, gt: &Mesh, options: &SurfaceOptions) -> Resu
     let (pred_shape, gt_shape) = (trimesh(pred, "predicted")?, trimesh(gt, "ground-truth")?);
     let threshold = match options.threshold {
         Some(t) => t,
-        None => {
-            let (lo, hi) = gt.bounds().ok_or(Error::NoSurfaceArea { which: "ground-truth" })?;
-            0.01 * (0..3).map(|k| ((hi[k] - lo[k]) as f64).powi(2)).sum::<f64>().sqrt()
-        }
+        None => default_threshold(gt).ok_or(Error::NoSurfaceArea { which: "ground-truth" })?,
     };
     let pred_points = sample_surface(pred, sample_count(pred, options), options.seed);
     let gt_points = sample_surface(gt, sample_count(gt, options), options.seed.wrapping_add(1));

@@ -111,6 +111,17 @@ pub fn normal_picture(normals: &Image<f32>) -> Image<u8> {
     Image::from_vec(normals.width(), normals.height(), 3, data).expect("size kept")
 }
 
+/// A view's pictures, those it has the data for: S0 ([`preview`]), AoP by DoP
+/// ([`aop_picture`], within its mask) and its true normals ([`normal_picture`]).
+pub fn view_pictures(view: &crate::View) -> [Option<Image<u8>>; 3] {
+    let polarization = view.stokes.as_ref().map(|stokes| {
+        let (aop, dop) = stokes.aop_dop();
+        (preview(&stokes.s0), aop_picture(&aop, &dop, view.mask.as_ref()))
+    });
+    let (s0, aop) = polarization.unzip();
+    [s0, aop, view.normals.as_ref().map(normal_picture)]
+}
+
 /// Shrink an 8-bit image by an integer `factor`, averaging each `factor x factor` block.
 pub fn downsample(image: &Image<u8>, factor: usize) -> Image<u8> {
     let f = factor.max(1);

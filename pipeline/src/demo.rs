@@ -362,8 +362,13 @@ fn reconstruct_and_evaluate(dataset: &Scene, truth: &Scene, dir: &Path, options:
         ..ReconOptions::default()
     };
     let bar = progress_bar(options.progress, options.recon_iterations as u64, "recon");
+    // The truth's normals beside the dataset's views: training tracks its normal error.
+    let mut with_truth = dataset.clone();
+    for view in &mut with_truth.views {
+        view.normals = truth.view(&view.name).and_then(|t| t.normals.clone());
+    }
     let started = std::time::Instant::now();
-    reconstruct(dataset, dir, &recon_options, RunControl::default(), |_, trainer| {
+    reconstruct(&with_truth, dir, &recon_options, RunControl::default(), |_, trainer| {
         bar.set_position(trainer.iteration as u64);
         ControlFlow::Continue(())
     })?;

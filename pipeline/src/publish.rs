@@ -1,12 +1,14 @@
 //! Releases of built datasets (`rmvp dataset publish`): one folder per object (both layouts
-//! and the build record), contact sheets, a generated datasheet (`README.md`) and
-//! `SHA256SUMS`; optionally a tar or zip archive of the whole. A release is written beside its
+//! and the build record), contact sheets, a generated datasheet (`README.md`), a page to look
+//! at (`report.html`) and `SHA256SUMS`; optionally a tar or zip archive of the whole. A release is written beside its
 //! final place (`RELEASE.partial`) and moved there whole, so that a folder named like a
 //! release is always complete.
 //!
 //! ```text
 //! RELEASE/README.md                  datasheet: objects, camera, calibration, poses, scan
 //!                                    alignment, split, formats and frames, license, loading
+//! RELEASE/report.html                the datasheet, each object's truth in 3D and its views
+//!                                    (crate::report), the checksums
 //! RELEASE/SHA256SUMS                 `sha256sum -c` format, every other file
 //! RELEASE/<object>/build.json        the build record (rmvp_pipeline::build::BuildRecord)
 //! RELEASE/<object>/nersp/ rmvp/      the two layouts
@@ -14,12 +16,13 @@
 //! ```
 
 use crate::build::{BuildRecord, ENV_CONVENTION};
+use crate::report::{write_dataset_report, DatasetObject, PAGE};
 use crate::{Error, Result};
 use rmvp_dataset::io::{png, write_bytes_atomically};
 use rmvp_dataset::layout::{read_scene, Layout};
 use rmvp_dataset::progress::progress_bar;
 use rmvp_dataset::session::{files_under, sha256_file};
-use rmvp_dataset::visualize::{aop_picture, contact_sheet, downsample, normal_picture, preview};
+use rmvp_dataset::visualize::{contact_sheet, downsample, view_pictures};
 use rmvp_dataset::{Image, Scene};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -135,10 +138,49 @@ pub fn publish(options: &PublishOptions) -> Result<Release> {
         bar.inc(1);
     }
     bar.finish();
-    write_bytes_atomically(&partial.join(CHECKSUMS), sums.as_bytes())?;
+    let shown: Vec<DatasetObject> = objects.iter().map(|(name, _, scene)| DatasetObject { name, scene }).collect();
+    bytes += write_page_and_checksums(&partial, &options.title, &datasheet, &shown, &sums)?;
     std::fs::rename(&partial, out).map_err(|e| rmvp_dataset::Error::io(out, e))?;
     let archive = options.archive.map(|kind| write_archive(out, kind)).transpose()?;
-    Ok(Release { objects: objects.into_iter().map(|(n, _, _)| n).collect(), files: files.len(), bytes, archive })
+    Ok(Release { objects: objects.into_iter().map(|(n, _, _)| n).collect(), files: files.len() + 1, bytes, archive })
+}
+
+/// The release's page (`report.html`), showing the data files' checksums `sums`, and
+/// `SHA256SUMS`: `sums` and the page's; returns the page's bytes.
+fn write_page_and_checksums(
+    release: &Path,
+    title: &str,
+    datasheet: &str,
+    objects: &[DatasetObject],
+    sums: &str,
+) -> Result<u64> {
+    let page = write_dataset_report(release, title, datasheet, objects, Some(sums))?;
+    let (hash, size) = sha256_file(&page)?;
+    write_bytes_atomically(&release.join(CHECKSUMS), format!("{sums}{hash}  {PAGE}\n").as_bytes())?;
+    Ok(size)
+}
+
+/// Write a published release's page again (`rmvp report RELEASE`), from its datasheet, its
+/// objects and its checksums, and its line in `SHA256SUMS`; returns the page's path. The data
+/// files are not read beyond what the page shows, nor checked (`rmvp dataset verify` does).
+pub fn write_release_report(release: &Path) -> Result<PathBuf> {
+    let datasheet = rmvp_dataset::io::input::read_text(&release.join(DATASHEET))?;
+    let title = datasheet.lines().next().and_then(|l| l.strip_prefix("# ")).unwrap_or("release").to_string();
+    let listed = rmvp_dataset::io::input::read_text(&release.join(CHECKSUMS))?;
+    let sums: String =
+        listed.lines().filter(|l| !l.ends_with(&format!("  {PAGE}"))).map(|l| format!("{l}\n")).collect();
+    let build_record = format!("/{}", crate::build::BUILD_FILE);
+    let names: Vec<&str> = sums.lines().filter_map(|l| l.split_once("  ")?.1.strip_suffix(&build_record)).collect();
+    let mut scenes = Vec::new();
+    for name in &names {
+        rmvp_dataset::io::input::file_name(name)
+            .map_err(|why| rmvp_dataset::Error::format(release.join(CHECKSUMS), format!("object {why}")))?;
+        scenes.push(read_scene(&release.join(name).join(Layout::Rmvp.name()))?);
+    }
+    let objects: Vec<DatasetObject> =
+        names.iter().zip(&scenes).map(|(name, scene)| DatasetObject { name, scene }).collect();
+    write_page_and_checksums(release, &title, &datasheet, &objects, &sums)?;
+    Ok(release.join(PAGE))
 }
 
 /// `path` with `.suffix` added to its file name.
@@ -176,19 +218,10 @@ fn copy_tree(from: &Path, to: &Path) -> Result<()> {
 
 /// S0 previews, AoP x DoP and ground-truth normals of every view (training views first).
 fn write_contact_sheets(scene: &Scene, dir: &Path) -> Result<()> {
-    let shrink = |image: Image<u8>| {
-        let factor = image.width().div_ceil(TILE_WIDTH);
-        downsample(&image, factor)
-    };
     let mut sheets: [Vec<Image<u8>>; 3] = Default::default();
     for view in &scene.views {
-        if let Some(stokes) = &view.stokes {
-            let (aop, dop) = stokes.aop_dop();
-            sheets[0].push(shrink(preview(&stokes.s0)));
-            sheets[1].push(shrink(aop_picture(&aop, &dop, view.mask.as_ref())));
-        }
-        if let Some(normals) = &view.normals {
-            sheets[2].push(shrink(normal_picture(normals)));
+        for (sheet, picture) in sheets.iter_mut().zip(view_pictures(view)) {
+            sheet.extend(picture.map(|p| downsample(&p, p.width().div_ceil(TILE_WIDTH))));
         }
     }
     std::fs::create_dir_all(dir).map_err(|e| rmvp_dataset::Error::io(dir, e))?;
@@ -265,89 +298,7 @@ fn datasheet(options: &PublishOptions, objects: &[(String, BuildRecord, Scene)])
         );
     }
     for (name, record, _) in objects {
-        let _ = writeln!(s, "\n## `{name}`\n");
-        let camera = &record.camera;
-        let identity = &camera["identity"];
-        let _ = writeln!(
-            s,
-            "- Camera: {} {} (serial {}, {}), {} at {}x{} sensor pixels.",
-            identity["vendor"].as_str().unwrap_or("?"),
-            identity["model"].as_str().unwrap_or("?"),
-            identity["serial"].as_str().unwrap_or("?"),
-            identity["protocol"].as_str().unwrap_or("?"),
-            camera["pixel_format"].as_str().unwrap_or("?"),
-            camera["width"],
-            camera["height"],
-        );
-        let settings = &record.settings;
-        let _ = writeln!(
-            s,
-            "- Settings: exposure(s) {} us, gain {} dB, {} frame(s) averaged, {} dark frame(s).",
-            settings["exposures_us"], settings["camera"]["gain_db"], settings["average"], settings["dark_frames"]
-        );
-        match &record.calibration {
-            Some(c) => {
-                let _ = writeln!(
-                    s,
-                    "- Calibration: RMS reprojection error {:.3} px over {} board images; std of fx, fy, cx, cy \
-                     {:.2}, {:.2}, {:.2}, {:.2} px.",
-                    c.rms_px, c.images, c.k_std_px[0], c.k_std_px[1], c.k_std_px[2], c.k_std_px[3]
-                );
-            }
-            None => {
-                let _ = writeln!(s, "- Calibration: not recorded with this build.");
-            }
-        }
-        let p = &record.poses;
-        let _ = writeln!(
-            s,
-            "- Poses: {} ({}); reprojection RMS per view mean {} px, worst {} px; {} view(s) not posed.",
-            p.method.as_str().unwrap_or("?"),
-            p.world,
-            p.residual_px_mean.map_or("-".into(), |r| format!("{r:.3}")),
-            p.residual_px_max.map_or("-".into(), |r| format!("{r:.3}")),
-            p.failed.len()
-        );
-        if let (Some(scan), Some(reference)) = (&record.scan, &record.reference) {
-            let a = &scan.alignment;
-            let fit = match scan.expected_scale {
-                Some(_) => format!(
-                    "rigidly at its units' scale (a free scale would be {:.5}; the reference's surface lies {:+.4} \
-                     outside the scan's, fitted as one offset along its normals)",
-                    scan.free_scale, a.target_offset
-                ),
-                None => "with scale".to_string(),
-            };
-            let _ = writeln!(
-                s,
-                "- Ground truth: laser scan `{}` ({:?}) aligned by ICP {fit} onto a reference reconstruction \
-                 from all {} views ({:?} preset, {} iterations): scale {:.5}, RMS point-to-plane {:.4}, median \
-                 distance {:.4} world units ({:.3} % of the object's size), {:.1} % inliers; captured masks \
-                 against the scan's silhouettes: IoU mean {:.4}, lowest {:.4} (view {}).",
-                scan.file.file_name().unwrap_or_default().to_string_lossy(),
-                scan.units,
-                reference.views,
-                reference.preset,
-                reference.iterations,
-                a.transform.s,
-                a.rms,
-                a.median_distance,
-                100.0 * scan.median_distance_relative,
-                100.0 * a.inlier_ratio,
-                scan.mask_iou_mean,
-                scan.mask_iou_min.0,
-                scan.mask_iou_min.1
-            );
-        }
-        if let Some(env) = &record.environment {
-            let _ = writeln!(
-                s,
-                "- Environment map: panorama `{}` ({}x{}) turned into the world frame.",
-                env.file.file_name().unwrap_or_default().to_string_lossy(),
-                env.size[0],
-                env.size[1]
-            );
-        }
+        let _ = write!(s, "\n## `{name}`\n\n{}", record.datasheet_section());
     }
     let _ = write!(
         s,

@@ -16,8 +16,8 @@
 //! - [`extract`]: marching tetrahedra (the SDF on the CPU or, with the `cuda` feature, by the
 //!   kernels of `cuda` on a GPU); [`options`]: `rmvp recon`'s options; [`checkpoint`]: save and
 //!   resume bit for bit; [`output`]: normal maps and re-rendered Stokes where the surface is;
-//!   [`residuals`]: the model's Stokes against its input; [`reconstruct`]: a whole run in a
-//!   folder.
+//!   [`residuals`]: the model's Stokes against its input; [`tracking`]: the normal error against
+//!   a ground truth while training; [`reconstruct`]: a whole run in a folder.
 
 #![warn(missing_docs)]
 // Numeric kernels index several arrays with one counter; iterators would hide the formulas.
@@ -45,6 +45,7 @@ pub mod residuals;
 pub mod samples;
 pub mod step;
 pub mod trace;
+pub mod tracking;
 pub mod train;
 pub mod volume;
 

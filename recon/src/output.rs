@@ -15,7 +15,7 @@
 use crate::data::Frame;
 use crate::model::{Model, STOKES};
 use crate::ray::Ray;
-use crate::trace::{sphere_trace, TraceLimits, TraceRay};
+use crate::trace::{sphere_trace, TraceRay, SURFACE_LIMITS};
 use crate::train::Trainer;
 use crate::volume::shade_points;
 use rayon::prelude::*;
@@ -23,8 +23,6 @@ use rmvp_dataset::{Camera, Image, Mesh, Stokes};
 use rmvp_render::bvh::Bvh;
 use rmvp_render::math::Vec3;
 
-/// Surface tracing: slightly short steps (a learned SDF's slope can exceed 1), at most 0.05 long.
-const SURFACE: TraceLimits = TraceLimits { step_scale: 0.9, max_step: 0.05, max_steps: 128 };
 /// Rays per parallel work item (and per batch of field evaluations).
 const CHUNK: usize = 4096;
 
@@ -160,14 +158,14 @@ fn field_depths(
             TraceRay { origin: r.origin, dir: r.dir, start: (t - 2.0 * cell).max(r.near), end: r.far }
         })
         .collect();
-    let mut hits = sphere_trace(model, params, level_weight, &traced, SURFACE);
+    let mut hits = sphere_trace(model, params, level_weight, &traced, SURFACE_LIMITS);
     // A ray that is on or inside the surface where it starts is traced again from its entry.
     let again: Vec<usize> = (0..missed.len())
         .filter(|&m| traced[m].start > rays[missed[m]].1.near && hits[m] == Some(traced[m].start))
         .collect();
     let from_entry: Vec<TraceRay> =
         again.iter().map(|&m| TraceRay { start: rays[missed[m]].1.near, ..traced[m] }).collect();
-    for (m, hit) in again.into_iter().zip(sphere_trace(model, params, level_weight, &from_entry, SURFACE)) {
+    for (m, hit) in again.into_iter().zip(sphere_trace(model, params, level_weight, &from_entry, SURFACE_LIMITS)) {
         hits[m] = hit;
     }
     for (m, hit) in missed.into_iter().zip(hits) {

@@ -1,5 +1,5 @@
 //! A whole reconstruction run in an output folder: training with checkpoints and a loss log
-//! (resumable), then the mesh, normal maps, re-rendered Stokes, a comparison picture and the
+//! (resumable; with the normal error against the scene's ground truth where it has one), then the mesh, normal maps, re-rendered Stokes, a comparison picture and the
 //! residuals of the model against its input.
 
 use crate::checkpoint;
@@ -8,6 +8,7 @@ use crate::extract::{extract_mesh, CpuSdf, Device};
 use crate::options::{ReconOptions, RunControl};
 use crate::output::{render_view, SurfaceGuide};
 use crate::residuals::view_residuals;
+use crate::tracking::{tracked_at, NormalTrack};
 use crate::train::{StepReport, Trainer};
 use crate::{Error, Result};
 use rmvp_dataset::io::atomic::write_bytes_atomically;
@@ -79,6 +80,7 @@ pub fn reconstruct(
     };
     write_bytes_atomically(&log_path, kept.as_bytes())?;
     let mut log = std::fs::OpenOptions::new().append(true).open(&log_path).map_err(|e| Error::io(&log_path, e))?;
+    let track = NormalTrack::new(scene, &trainer.set.frame);
     let mut budget = control.stop_after.unwrap_or(u32::MAX);
     while trainer.iteration < trainer.config.iterations {
         if budget == 0 {
@@ -87,7 +89,10 @@ pub fn reconstruct(
             return Ok(trainer);
         }
         budget -= 1;
-        let report = trainer.step();
+        let mut report = trainer.step();
+        if let Some(track) = track.as_ref().filter(|_| tracked_at(trainer.iteration, trainer.config.iterations)) {
+            report.normal_error_deg = track.normal_error_deg(&trainer);
+        }
         let line = serde_json::to_string(&report).expect("plain data");
         writeln!(log, "{line}").map_err(|e| Error::io(&log_path, e))?;
         if trainer.iteration.is_multiple_of(options.checkpoint_every) || trainer.iteration == trainer.config.iterations

@@ -29,6 +29,10 @@ impl TraceRay {
     }
 }
 
+/// Tracing to a trained field's surface: slightly short steps (a learned SDF's slope can exceed
+/// 1), at most 0.05 long.
+pub const SURFACE_LIMITS: TraceLimits = TraceLimits { step_scale: 0.9, max_step: 0.05, max_steps: 128 };
+
 /// How far a trace goes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TraceLimits {

@@ -40,6 +40,10 @@ pub struct StepReport {
     /// What went wrong, if the step was not applied.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub event: Option<StepEvent>,
+    /// The normal error against the scene's ground truth after the step, degrees, at the
+    /// iterations [`crate::tracking`] measures it (a scene with ground-truth normals).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normal_error_deg: Option<f64>,
 }
 
 /// A step that was not applied.
@@ -180,6 +184,7 @@ impl Trainer {
             samples,
             lr_factor: Adam::schedule(&self.config.adam, it, self.config.iterations),
             event: None,
+            normal_error_deg: None,
         };
         if !report.loss.is_finite() || grad.iter().any(|g| !g.is_finite()) {
             self.bad_steps += 1;

@@ -7,7 +7,7 @@ use std::collections::BTreeSet;
 use std::path::Path;
 
 /// The modules from the bottom up; a module may use the ones before it.
-const LAYERS: [&str; 23] = [
+const LAYERS: [&str; 24] = [
     "error",
     "engine",
     "pbrdf",
@@ -30,6 +30,7 @@ const LAYERS: [&str; 23] = [
     "checkpoint",
     "output",
     "residuals",
+    "tracking",
     "reconstruct",
 ];
 

@@ -36,6 +36,9 @@ pub fn run(args: Args) -> Result<()> {
     let bar = progress(total as u64, "recon");
     let trainer = reconstruct(&scene, &args.output, &options, control, |report, trainer| {
         bar.set_position(trainer.iteration as u64);
+        if let Some(error) = report.normal_error_deg {
+            bar.println(format!("iteration {}: normal error {error:.2} degrees against the truth", trainer.iteration));
+        }
         match &report.event {
             Some(event) => bar.println(format!("iteration {}: {event}", report.iteration)),
             None if report.iteration % 10 == 0 => {

@@ -12,7 +12,7 @@
 //! 5. `environment` (with a panorama): the panorama turned into the world frame
 //!    ([`crate::panorama`]);
 //! 6. `layouts`: the NeRSP layout (what the official loader reads) and ours, each written
-//!    beside its final place and moved there whole.
+//!    beside its final place and moved there whole; the build's page (`report.html`).
 //!
 //! `build.json` (a [`BuildRecord`]) is rewritten after every stage and says `complete` last.
 //!
@@ -20,6 +20,7 @@
 //! DATASET/build.json        what was built from what, stage times, residuals
 //! DATASET/nersp/            the NeRSP layout (training views in cameras.npz, every view in gt/)
 //! DATASET/rmvp/             our layout
+//! DATASET/report.html       the datasheet, the truth in 3D with the cameras, the views
 //! DATASET/work/reference/   the reference reconstruction (checkpoint, mesh.ply)
 //! DATASET/work/scan/        alignment.json, aligned.ply (the scan in the world frame)
 //! ```
@@ -30,6 +31,7 @@ pub use record::*;
 
 use crate::ground_truth::set_ground_truth;
 use crate::panorama::{read_panorama, to_world, world_to_panorama};
+use crate::report::{write_dataset_report, DatasetObject};
 use crate::{Error, Result};
 #[cfg(test)]
 use nalgebra::Rotation3;
@@ -331,6 +333,7 @@ impl<'a> Build<'a> {
             std::fs::rename(&partial, &final_dir).map_err(|e| rmvp_dataset::Error::io(&final_dir, e))?;
         }
         self.record.complete = true;
+        write_build_page(&self.options.output, &self.record, &self.scene)?;
         self.finish(Stage::Layouts, clock)?;
         Ok(self.record)
     }
@@ -344,6 +347,37 @@ impl<'a> Build<'a> {
         }
         self.record.write(&self.options.output)
     }
+}
+
+/// Write a complete build's page again (`rmvp report DATASET`); returns its path.
+pub fn write_build_report(dataset: &Path) -> Result<PathBuf> {
+    let record = BuildRecord::read(dataset)?;
+    if !record.complete {
+        return Err(Error::Folder { path: dataset.to_path_buf(), why: "an unfinished build has no page yet".into() });
+    }
+    let scene = rmvp_dataset::layout::read_scene(&dataset.join(Layout::Rmvp.name()))?;
+    write_build_page(dataset, &record, &scene)
+}
+
+/// The page of the build in `dataset` (`report.html`): its record's datasheet and stage times,
+/// its truth in 3D with the cameras, its views.
+fn write_build_page(dataset: &Path, record: &BuildRecord, scene: &Scene) -> Result<PathBuf> {
+    let mut sheet = format!(
+        "Built with rmvp {} (`rmvp dataset build`): {} views, {} for training ({}), {}x{}.\n\n{}\n\
+         | stage | seconds |\n| --- | --- |\n",
+        env!("CARGO_PKG_VERSION"),
+        record.views.len(),
+        record.train.len(),
+        record.train.join(", "),
+        record.size[0],
+        record.size[1],
+        record.datasheet_section()
+    );
+    for stage in &record.stages {
+        sheet += &format!("| {} | {:.1} |\n", stage.name, stage.seconds);
+    }
+    let object = DatasetObject { name: &record.object, scene };
+    write_dataset_report(dataset, &record.object, &sheet, &[object], None)
 }
 
 /// The mapping of a dataset's environment map (see [`crate::panorama`]).

@@ -8,6 +8,7 @@ use rmvp_dataset::io::json::{free_form, read_json, write_json};
 use rmvp_recon::options::ReconOptions;
 use rmvp_recon::presets::Preset;
 use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// The record of a build, in the dataset folder.
@@ -300,6 +301,95 @@ impl BuildRecord {
 
     pub(super) fn done(&self, stage: Stage) -> bool {
         self.stages.iter().any(|s| s.name == stage)
+    }
+
+    /// The object's part of a datasheet (Markdown): camera, settings, calibration, poses, the
+    /// ground truth's alignment and the environment map, as recorded.
+    pub fn datasheet_section(&self) -> String {
+        let mut s = String::new();
+        let camera = &self.camera;
+        let identity = &camera["identity"];
+        let _ = writeln!(
+            s,
+            "- Camera: {} {} (serial {}, {}), {} at {}x{} sensor pixels.",
+            identity["vendor"].as_str().unwrap_or("?"),
+            identity["model"].as_str().unwrap_or("?"),
+            identity["serial"].as_str().unwrap_or("?"),
+            identity["protocol"].as_str().unwrap_or("?"),
+            camera["pixel_format"].as_str().unwrap_or("?"),
+            camera["width"],
+            camera["height"],
+        );
+        let settings = &self.settings;
+        let _ = writeln!(
+            s,
+            "- Settings: exposure(s) {} us, gain {} dB, {} frame(s) averaged, {} dark frame(s).",
+            settings["exposures_us"], settings["camera"]["gain_db"], settings["average"], settings["dark_frames"]
+        );
+        match &self.calibration {
+            Some(c) => {
+                let _ = writeln!(
+                    s,
+                    "- Calibration: RMS reprojection error {:.3} px over {} board images; std of fx, fy, cx, cy \
+                 {:.2}, {:.2}, {:.2}, {:.2} px.",
+                    c.rms_px, c.images, c.k_std_px[0], c.k_std_px[1], c.k_std_px[2], c.k_std_px[3]
+                );
+            }
+            None => {
+                let _ = writeln!(s, "- Calibration: not recorded with this build.");
+            }
+        }
+        let p = &self.poses;
+        let _ = writeln!(
+            s,
+            "- Poses: {} ({}); reprojection RMS per view mean {} px, worst {} px; {} view(s) not posed.",
+            p.method.as_str().unwrap_or("?"),
+            p.world,
+            p.residual_px_mean.map_or("-".into(), |r| format!("{r:.3}")),
+            p.residual_px_max.map_or("-".into(), |r| format!("{r:.3}")),
+            p.failed.len()
+        );
+        if let (Some(scan), Some(reference)) = (&self.scan, &self.reference) {
+            let a = &scan.alignment;
+            let fit = match scan.expected_scale {
+                Some(_) => format!(
+                    "rigidly at its units' scale (a free scale would be {:.5}; the reference's surface lies {:+.4} \
+                 outside the scan's, fitted as one offset along its normals)",
+                    scan.free_scale, a.target_offset
+                ),
+                None => "with scale".to_string(),
+            };
+            let _ = writeln!(
+                s,
+                "- Ground truth: laser scan `{}` ({:?}) aligned by ICP {fit} onto a reference reconstruction \
+             from all {} views ({:?} preset, {} iterations): scale {:.5}, RMS point-to-plane {:.4}, median \
+             distance {:.4} world units ({:.3} % of the object's size), {:.1} % inliers; captured masks \
+             against the scan's silhouettes: IoU mean {:.4}, lowest {:.4} (view {}).",
+                scan.file.file_name().unwrap_or_default().to_string_lossy(),
+                scan.units,
+                reference.views,
+                reference.preset,
+                reference.iterations,
+                a.transform.s,
+                a.rms,
+                a.median_distance,
+                100.0 * scan.median_distance_relative,
+                100.0 * a.inlier_ratio,
+                scan.mask_iou_mean,
+                scan.mask_iou_min.0,
+                scan.mask_iou_min.1
+            );
+        }
+        if let Some(env) = &self.environment {
+            let _ = writeln!(
+                s,
+                "- Environment map: panorama `{}` ({}x{}) turned into the world frame.",
+                env.file.file_name().unwrap_or_default().to_string_lossy(),
+                env.size[0],
+                env.size[1]
+            );
+        }
+        s
     }
 }
 

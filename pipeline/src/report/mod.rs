@@ -1,9 +1,15 @@
-//! One page per reconstruction (`report.html`), self-contained: nothing fetched, no server.
-//! The mesh in an interactive 3D view (our own small WebGL code, `viewer.js`) with the views'
-//! cameras as frustums, the training's losses plotted (SVG), the figures as tables (options,
-//! evaluation, residuals), and the pictures the run wrote (comparison, residuals, normal error
-//! maps). Meshes above [`PAGE_TRIANGLES`] triangles are decimated for the page, which says so;
+//! One page (`report.html`) per reconstruction, batch, built dataset and release,
+//! self-contained: nothing fetched, no server. A reconstruction's: the mesh in an interactive 3D
+//! view (our own small WebGL code, `viewer.js`) with the views' cameras as frustums, coloured by
+//! its distance to the truth where there is one, the training's losses and normal error plotted
+//! (SVG), the figures as tables (options, evaluation, residuals), and the pictures the run wrote
+//! (comparison, residuals, normal error maps); a batch's: a sortable row per task linking to its
+//! page; a dataset's ([`dataset`]): its datasheet, its truth in 3D and a grid of its views. Meshes above [`PAGE_TRIANGLES`] triangles are decimated for the page, which says so;
 //! the full mesh stays beside it.
+
+mod dataset;
+
+pub use dataset::{write_dataset_report, DatasetObject};
 
 use crate::Result;
 use base64::engine::general_purpose::STANDARD as BASE64;
@@ -33,25 +39,25 @@ const EMBEDDED_BYTES: usize = 2 << 20;
 
 /// Most points of a loss curve (the log is averaged over buckets beyond).
 const CURVE_POINTS: usize = 600;
+/// Curves of at most this many points show each as a dot.
+const MARKED_POINTS: usize = 64;
 
 /// Write `dir/report.html` for the reconstruction in `dir` (`rmvp recon`'s output), with the
 /// cameras of `scene` where given; returns its path.
 pub fn write_recon_report(dir: &Path, scene: Option<&Scene>) -> Result<PathBuf> {
     let title = dir.canonicalize().ok().and_then(|d| d.file_name().map(|n| n.to_string_lossy().into_owned()));
-    let title = title.unwrap_or_else(|| "reconstruction".into());
-    let mut html = String::new();
-    let _ = write!(
-        html,
-        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title>",
-        escape(&title)
-    );
-    let _ = write!(html, "<style>{}</style></head><body><h1>{}</h1>", include_str!("style.css"), escape(&title));
+    let mut html = page_start(&title.unwrap_or_else(|| "reconstruction".into()));
 
     html += "<h2>Surface</h2>";
     let mesh_path = dir.join(MESH);
+    let evaluation = read_json(&dir.join(EVALUATION))?;
     if mesh_path.is_file() {
         let mesh = Mesh::read(&mesh_path)?;
-        html += &mesh_section(&mesh, scene);
+        let truth = scene.and_then(|s| s.mesh.as_ref()).map(|truth| {
+            let threshold = evaluation.as_ref().and_then(|e| e.get("threshold")).and_then(Value::as_f64);
+            (truth, 2.0 * threshold.or_else(|| rmvp_align::surface::default_threshold(truth)).unwrap_or(0.01))
+        });
+        html += &mesh_section("surface", &mesh, scene, truth)?;
     } else {
         html += "<p>No mesh yet: the run has not finished.</p>";
     }
@@ -63,7 +69,6 @@ pub fn write_recon_report(dir: &Path, scene: Option<&Scene>) -> Result<PathBuf> 
         let value = serde_json::to_value(&options).expect("options serialise");
         html += &options_table("Options", &value);
     }
-    let evaluation = read_json(&dir.join(EVALUATION))?;
     if let Some(e) = &evaluation {
         html += &evaluation_tables(e);
     }
@@ -74,7 +79,8 @@ pub fn write_recon_report(dir: &Path, scene: Option<&Scene>) -> Result<PathBuf> 
     html += "<h2>Training</h2>";
     let log_path = dir.join(LOG);
     if log_path.is_file() {
-        html += &loss_plot(&read_text(&log_path)?, &log_path)?;
+        let evaluated = evaluation.as_ref().and_then(|e| e.get("normal_mae_deg")).and_then(Value::as_f64);
+        html += &training_plots(&read_text(&log_path)?, &log_path, evaluated)?;
     }
 
     html += "<h2>Views</h2>";
@@ -99,8 +105,7 @@ pub fn write_recon_report(dir: &Path, scene: Option<&Scene>) -> Result<PathBuf> 
         }
         html += "</div>";
     }
-    html += "<pre id=\"selftest\" hidden></pre>";
-    let _ = write!(html, "<script>{}</script></body></html>", include_str!("viewer.js"));
+    html += &page_end();
     let page = dir.join(PAGE);
     write_bytes_atomically(&page, html.as_bytes())?;
     Ok(page)
@@ -125,14 +130,7 @@ pub struct TaskRow {
 /// Write `dir/report.html` for a batch: one row per finished task (sortable by any column,
 /// each linking to the task's own page), after the batch's chart `chart` (a PNG beside it).
 pub fn write_batch_report(dir: &Path, tasks: &[TaskRow], chart: &Path) -> Result<PathBuf> {
-    let mut html = String::new();
-    let _ = write!(html, "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>batch</title>");
-    let _ = write!(
-        html,
-        "<style>{}</style></head><body><h1>Batch: {} tasks finished</h1>",
-        include_str!("style.css"),
-        tasks.len()
-    );
+    let mut html = page_start(&format!("Batch: {} tasks finished", tasks.len()));
     let chart_name = chart.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     html += &picture(dir, &chart_name, "Normal error by dataset and variant, mean and spread over seeds.")?;
     html += "<table id=\"tasks\"><caption>Tasks (click a column to sort)</caption><tr><th>task</th><th>dataset</th>\
@@ -156,6 +154,21 @@ pub fn write_batch_report(dir: &Path, tasks: &[TaskRow], chart: &Path) -> Result
     let page = dir.join(PAGE);
     write_bytes_atomically(&page, html.as_bytes())?;
     Ok(page)
+}
+
+/// A page's head (its style) and title.
+fn page_start(title: &str) -> String {
+    format!(
+        "<!doctype html><html lang=\"en\"><head><meta charset=\"utf-8\"><title>{0}</title><style>{1}</style></head>\
+         <body><h1>{0}</h1>",
+        escape(title),
+        include_str!("style.css")
+    )
+}
+
+/// A page's end: its 3D views' script and the element its self-test writes into.
+fn page_end() -> String {
+    format!("<pre id=\"selftest\" hidden></pre><script>{}</script></body></html>", include_str!("viewer.js"))
 }
 
 /// `text` with HTML's special characters escaped.
@@ -277,11 +290,13 @@ fn picture(dir: &Path, name: &str, caption: &str) -> Result<String> {
     Ok(format!("<figure><img alt=\"{0}\" src=\"{source}\"><figcaption>{0}</figcaption></figure>", escape(caption)))
 }
 
-/// The loss terms of the log (`log.jsonl`, one step a line) plotted against the iteration,
-/// log scale, as SVG.
-fn loss_plot(log: &str, path: &Path) -> Result<String> {
+/// The training's course from its log (`log.jsonl`, one step a line): the loss terms against
+/// the iteration (log scale) and, where the run measured it, the normal error against the
+/// truth (degrees, with the evaluated mesh's figure `evaluated_deg` beside it), as SVG.
+fn training_plots(log: &str, path: &Path, evaluated_deg: Option<f64>) -> Result<String> {
     let mut series: Vec<(String, Vec<f64>)> = Vec::new();
     let mut index: HashMap<String, usize> = HashMap::new();
+    let mut normal_error: Vec<(f64, f64)> = Vec::new();
     let mut steps = 0;
     for (n, line) in log.lines().enumerate() {
         let step: Value = serde_json::from_str(line)
@@ -300,11 +315,13 @@ fn loss_plot(log: &str, path: &Path) -> Result<String> {
         }
         steps += 1;
         series.iter_mut().for_each(|(_, values)| values.resize(steps, f64::NAN));
+        if let Some(e) = step.get("normal_error_deg").and_then(Value::as_f64).filter(|e| e.is_finite()) {
+            normal_error.push((steps as f64, e));
+        }
     }
     if steps == 0 {
         return Ok("<p>The log is empty.</p>".into());
     }
-    let (w, h, left, bottom) = (760.0, 300.0, 60.0, 30.0);
     let bucket = steps.div_ceil(CURVE_POINTS);
     let curves: Vec<(String, Vec<(f64, f64)>)> = series
         .iter()
@@ -320,38 +337,115 @@ fn loss_plot(log: &str, path: &Path) -> Result<String> {
             (name.clone(), points)
         })
         .collect();
-    let all: Vec<f64> = curves.iter().flat_map(|(_, p)| p.iter().map(|q| q.1.log10())).collect();
-    let (lo, hi) = all.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-    let (lo, hi) = (lo.floor(), hi.ceil().max(lo.floor() + 1.0));
+    let mut html = svg_plot(&curves, steps, Scale::Log, "losses against iteration", &[]);
+    if !normal_error.is_empty() {
+        let mut marks = Vec::new();
+        if let Some(e) = evaluated_deg {
+            marks.push(("the extracted mesh, evaluated".to_string(), e));
+        }
+        html += &svg_plot(
+            &[("normal error, degrees".into(), normal_error)],
+            steps,
+            Scale::Linear,
+            "normal error against iteration",
+            &marks,
+        );
+        let _ = write!(
+            html,
+            "<p class=\"note\">The normal error against the truth during training: the field sphere traced at {} \
+             sampled pixels of the views with ground-truth normals every {} iterations.</p>",
+            rmvp_recon::tracking::TRACK_PIXELS,
+            rmvp_recon::tracking::TRACK_EVERY
+        );
+    }
+    Ok(html)
+}
+
+/// The vertical axis of a plot.
+#[derive(Clone, Copy, PartialEq)]
+enum Scale {
+    /// Decades, for losses.
+    Log,
+    /// From 0, for angles.
+    Linear,
+}
+
+/// Curves (name, points of iteration and value) over `steps` iterations as an SVG plot, with
+/// horizontal dashed lines at `marks` (name, value).
+fn svg_plot(
+    curves: &[(String, Vec<(f64, f64)>)],
+    steps: usize,
+    scale: Scale,
+    label: &str,
+    marks: &[(String, f64)],
+) -> String {
+    let (w, h, left, bottom) = (760.0, 300.0, 60.0, 30.0);
+    let values = curves.iter().flat_map(|(_, p)| p.iter().map(|q| q.1)).chain(marks.iter().map(|m| m.1));
+    let (lo, hi, ticks): (f64, f64, Vec<(f64, String)>) = match scale {
+        Scale::Log => {
+            let logs: Vec<f64> = values.filter(|v| *v > 0.0).map(f64::log10).collect();
+            let (lo, hi) = logs.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+            let (lo, hi) = if lo.is_finite() { (lo.floor(), hi.ceil().max(lo.floor() + 1.0)) } else { (0.0, 1.0) };
+            (lo, hi, (lo as i32..=hi as i32).map(|d| (d as f64, format!("1e{d}"))).collect())
+        }
+        Scale::Linear => {
+            let top = values.fold(0f64, f64::max).max(1e-9);
+            let step = [1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0].into_iter().find(|s| top / s <= 6.0).unwrap_or(200.0);
+            let hi = (top / step).ceil() * step;
+            (0.0, hi, (0..=(hi / step) as usize).map(|k| (k as f64 * step, format!("{}", k as f64 * step))).collect())
+        }
+    };
+    let to_axis = |v: f64| if scale == Scale::Log { v.max(1e-300).log10() } else { v };
     let x = |i: f64| left + (w - left - 10.0) * i / steps.max(1) as f64;
-    let y = |v: f64| 10.0 + (h - bottom - 10.0) * (hi - v.log10()) / (hi - lo);
+    let y = |v: f64| 10.0 + (h - bottom - 10.0) * (hi - to_axis(v)) / (hi - lo);
+    let y_tick = |t: f64| 10.0 + (h - bottom - 10.0) * (hi - t) / (hi - lo);
     let colours = ["#e8e8e8", "#4e9af1", "#f1a24e", "#5fd07a", "#e05d5d", "#b57be8", "#d8d05a"];
-    let mut svg =
-        format!("<svg class=\"plot\" viewBox=\"0 0 {w} {h}\" role=\"img\" aria-label=\"losses against iteration\">");
-    for decade in lo as i32..=hi as i32 {
-        let yy = y(10f64.powi(decade));
-        let _ = write!(svg, "<line x1=\"{left}\" x2=\"{}\" y1=\"{yy:.1}\" y2=\"{yy:.1}\" class=\"gridline\"/><text x=\"{}\" y=\"{:.1}\" class=\"tick\">1e{decade}</text>", w - 10.0, left - 6.0, yy + 4.0);
+    let mut svg = format!("<svg class=\"plot\" viewBox=\"0 0 {w} {h}\" role=\"img\" aria-label=\"{}\">", escape(label));
+    for (t, text) in &ticks {
+        let yy = y_tick(*t);
+        let _ = write!(svg, "<line x1=\"{left}\" x2=\"{}\" y1=\"{yy:.1}\" y2=\"{yy:.1}\" class=\"gridline\"/><text x=\"{}\" y=\"{:.1}\" class=\"tick\">{text}</text>", w - 10.0, 6.0, yy + 4.0);
     }
     let _ =
         write!(svg, "<text x=\"{}\" y=\"{}\" class=\"tick\">iteration (0 to {steps})</text>", w / 2.0 - 60.0, h - 8.0);
+    let mut legend = 0;
     for (k, (name, points)) in curves.iter().enumerate() {
         let colour = colours[k % colours.len()];
         let path: String = points.iter().map(|&(i, v)| format!("{:.1},{:.1} ", x(i), y(v))).collect();
         let _ = write!(svg, "<polyline fill=\"none\" stroke=\"{colour}\" stroke-width=\"1.5\" points=\"{path}\"/>");
+        if points.len() <= MARKED_POINTS {
+            for &(i, v) in points {
+                let _ = write!(svg, "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"3\" fill=\"{colour}\"/>", x(i), y(v));
+            }
+        }
         let _ = write!(
             svg,
             "<text x=\"{}\" y=\"{}\" style=\"fill:{colour}\" class=\"legend\">{}</text>",
-            w - 150.0,
-            24.0 + 16.0 * k as f64,
+            w - 190.0,
+            24.0 + 16.0 * legend as f64,
             escape(name)
         );
+        legend += 1;
     }
-    Ok(svg + "</svg>")
+    for (name, value) in marks {
+        let yy = y(*value);
+        let _ = write!(
+            svg,
+            "<line x1=\"{left}\" x2=\"{}\" y1=\"{yy:.1}\" y2=\"{yy:.1}\" class=\"mark\"/>\
+             <text x=\"{}\" y=\"{}\" class=\"legend mark-label\">{}: {value:.2}</text>",
+            w - 10.0,
+            w - 190.0,
+            24.0 + 16.0 * legend as f64,
+            escape(name)
+        );
+        legend += 1;
+    }
+    svg + "</svg>"
 }
 
-/// The 3D view: the mesh (decimated to [`PAGE_TRIANGLES`] if larger) and the cameras of `scene`
-/// as frustums, in the page as base64 arrays.
-fn mesh_section(mesh: &Mesh, scene: Option<&Scene>) -> String {
+/// The 3D view: the mesh (decimated to [`PAGE_TRIANGLES`] if larger), the cameras of `scene`
+/// as frustums and, with `truth` (the true surface and the distance shown in full red), each
+/// vertex's distance to it, in the page as base64 arrays. `id` names the view in the page.
+fn mesh_section(id: &str, mesh: &Mesh, scene: Option<&Scene>, truth: Option<(&Mesh, f64)>) -> Result<String> {
     let (positions, faces) = decimated(mesh, PAGE_TRIANGLES);
     let (lo, hi) = mesh.bounds().unwrap_or(([-1.0; 3], [1.0; 3]));
     let centre = [0, 1, 2].map(|k| 0.5 * (lo[k] + hi[k]));
@@ -374,32 +468,43 @@ fn mesh_section(mesh: &Mesh, scene: Option<&Scene>) -> String {
             frustums.extend(corners[k].iter().chain(&corners[(k + 1) % 4]));
         }
     }
-    let bytes_of = |values: &[u8]| BASE64.encode(values);
-    let position_bytes: Vec<u8> = positions.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
-    let index_bytes: Vec<u8> = faces.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
-    let data = serde_json::json!({
-        "positions": bytes_of(&position_bytes),
-        "indices": bytes_of(&index_bytes),
+    let base64_of = |values: &mut dyn Iterator<Item = [u8; 4]>| BASE64.encode(values.flatten().collect::<Vec<u8>>());
+    let mut data = serde_json::json!({
+        "positions": base64_of(&mut positions.iter().flatten().map(|v| v.to_le_bytes())),
+        "indices": base64_of(&mut faces.iter().flatten().map(|v| v.to_le_bytes())),
         "centre": centre,
         "radius": radius,
         "frustums": frustums,
         "frustumReach": reach,
     });
+    let mut legend = String::new();
+    if let Some((truth, full_scale)) = truth {
+        let distances = rmvp_align::surface::distances_to_surface(truth, &positions)?;
+        data["errors"] = base64_of(&mut distances.iter().map(|&d| (d as f32).to_le_bytes())).into();
+        data["errorScale"] = full_scale.into();
+        let _ = write!(
+            legend,
+            "<span class=\"legend-bar\"><span>0</span><span class=\"ramp\"></span><span>{full_scale:.4}</span></span> \
+             <span class=\"note\">colour by error: each vertex's distance to the true surface, in the world's units</span>"
+        );
+    }
     let note = if faces.len() < mesh.faces.len() {
         format!(
-            "{} of the mesh's {} triangles drawn here (vertices merged on a grid); the full mesh is <code>{MESH}</code> beside this page.",
+            "{} of the mesh's {} triangles drawn here (vertices merged on a grid); the full mesh is beside this page.",
             faces.len(),
             mesh.faces.len()
         )
     } else {
         format!("{} triangles, {} vertices.", mesh.faces.len(), mesh.positions.len())
     };
-    format!(
-        "<div class=\"viewer\"><canvas id=\"mesh-view\" width=\"760\" height=\"520\"></canvas><p id=\"mesh-error\"></p>\
-         <label><input type=\"checkbox\" id=\"colour-by-normal\"> colour by normal</label> \
-         <span class=\"note\">Drag to turn, wheel to zoom; the views' cameras in orange. {note}</span></div>\
-         <script type=\"application/json\" id=\"mesh-data\">{data}</script>"
-    )
+    let error_option = if truth.is_some() { "<option value=\"error\">error</option>" } else { "" };
+    Ok(format!(
+        "<div class=\"viewer\" id=\"{id}\"><canvas class=\"mesh-view\" width=\"760\" height=\"520\"></canvas>\
+         <p class=\"mesh-error\"></p><label>colour <select class=\"colour\"><option value=\"shaded\">shaded</option>\
+         <option value=\"normal\">by normal</option>{error_option}</select></label> {legend}\
+         <p class=\"note\">Drag to turn, wheel to zoom; the views' cameras in orange. {note}</p>\
+         <script type=\"application/json\" class=\"mesh-data\">{data}</script></div>"
+    ))
 }
 
 /// `mesh` with at most `triangles` triangles: its vertices merged on ever coarser grids over its

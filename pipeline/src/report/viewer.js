@@ -1,7 +1,9 @@
-// The report's 3D view: the mesh (WebGL 1, no library), shaded or coloured by its normals, with
-// the views' cameras as frustums; drag to orbit, wheel to zoom. The data is in the page
-// (`#mesh-data`, base64 little-endian arrays). With `#selftest` in the address the page draws the
-// mesh from two directions and writes what it drew into `#selftest` (the test suite reads it).
+// The report's 3D views: each `.viewer` of the page draws its mesh (WebGL 1, no library), shaded,
+// coloured by its normals or, where the page holds a truth, by each vertex's distance to it, with
+// the views' cameras as frustums; drag to orbit, wheel to zoom. The data is in the viewer's
+// `.mesh-data` (base64 little-endian arrays). With `#selftest` in the address the page draws each
+// mesh from two directions (and coloured by error, where it can be) and writes what it drew into
+// `#selftest` (the test suite reads it).
 "use strict";
 
 (function () {
@@ -53,13 +55,22 @@
     return [x[0], y[0], z[0], 0, x[1], y[1], z[1], 0, x[2], y[2], z[2], 0, -dot(x, eye), -dot(y, eye), -dot(z, eye), 1];
   }
 
-  function start() {
-    const data = JSON.parse(document.getElementById("mesh-data").textContent);
-    const canvas = document.getElementById("mesh-view");
+  // The error colour ramp (blue, cyan, yellow, red), as the legend's CSS gradient draws it.
+  const RAMP = "vec3 ramp(float t) { t = clamp(t, 0.0, 1.0);" +
+    " vec3 a = vec3(0.19, 0.32, 0.87), b = vec3(0.2, 0.8, 0.85), c = vec3(0.95, 0.85, 0.2), d = vec3(0.9, 0.15, 0.12);" +
+    " return t < 0.333 ? mix(a, b, t * 3.0) : t < 0.667 ? mix(b, c, t * 3.0 - 1.0) : mix(c, d, t * 3.0 - 2.0); }";
+  const MODES = { shaded: 0, normal: 1, error: 2 };
+
+  // One viewer: returns a function that draws it at a turn (yaw) and colour mode, and reads back
+  // the share of the canvas that differs from the background.
+  function viewer(root) {
+    const data = JSON.parse(root.querySelector(".mesh-data").textContent);
+    const canvas = root.querySelector("canvas");
     const gl = canvas.getContext("webgl", { preserveDrawingBuffer: true, antialias: true });
     if (!gl) throw new Error("this browser has no WebGL");
     const positions = decode(data.positions, Float32Array);
     const indices = decode(data.indices, Uint32Array);
+    const errors = data.errors ? decode(data.errors, Float32Array) : new Float32Array(positions.length / 3);
     if (!gl.getExtension("OES_element_index_uint")) throw new Error("no 32-bit indices in this WebGL");
     // Vertex normals: the area-weighted sum of the faces'.
     const normals = new Float32Array(positions.length);
@@ -73,19 +84,22 @@
     const buffer = (target, array) => { const b = gl.createBuffer(); gl.bindBuffer(target, b); gl.bufferData(target, array, gl.STATIC_DRAW); return b; };
     const positionBuffer = buffer(gl.ARRAY_BUFFER, positions);
     const normalBuffer = buffer(gl.ARRAY_BUFFER, normals);
+    const errorBuffer = buffer(gl.ARRAY_BUFFER, errors);
     const indexBuffer = buffer(gl.ELEMENT_ARRAY_BUFFER, indices);
     const surface = program(gl,
-      "attribute vec3 p; attribute vec3 n; uniform mat4 m; varying vec3 vn;" +
-      "void main() { vn = n; gl_Position = m * vec4(p, 1.0); }",
-      "precision mediump float; varying vec3 vn; uniform vec3 light; uniform float byNormal;" +
+      "attribute vec3 p; attribute vec3 n; attribute float e; uniform mat4 m; varying vec3 vn; varying float ve;" +
+      "void main() { vn = n; ve = e; gl_Position = m * vec4(p, 1.0); }",
+      "precision mediump float; varying vec3 vn; varying float ve; uniform vec3 light; uniform float mode, scale;" + RAMP +
       "void main() { vec3 n = normalize(vn); float d = 0.25 + 0.75 * abs(dot(n, light));" +
-      " vec3 shaded = vec3(0.82, 0.80, 0.76) * d; gl_FragColor = vec4(mix(shaded, 0.5 + 0.5 * n, byNormal), 1.0); }");
+      " vec3 colour = mode > 1.5 ? ramp(ve / scale) * (0.55 + 0.45 * d) : mode > 0.5 ? 0.5 + 0.5 * n : vec3(0.82, 0.80, 0.76) * d;" +
+      " gl_FragColor = vec4(colour, 1.0); }");
     const lines = program(gl,
       "attribute vec3 p; uniform mat4 m; void main() { gl_Position = m * vec4(p, 1.0); }",
       "precision mediump float; void main() { gl_FragColor = vec4(0.95, 0.55, 0.1, 1.0); }");
     const frustumBuffer = buffer(gl.ARRAY_BUFFER, new Float32Array(data.frustums));
     const centre = data.centre, radius = data.radius;
-    const view = { yaw: 0.6, pitch: 0.35, distance: 3.2 * radius, byNormal: 0 };
+    const view = { yaw: 0.6, pitch: 0.35, distance: 3.2 * radius, mode: 0 };
+    const select = root.querySelector("select.colour");
 
     function draw() {
       gl.viewport(0, 0, canvas.width, canvas.height);
@@ -104,12 +118,13 @@
       const toEye = [eye[0] - centre[0], eye[1] - centre[1], eye[2] - centre[2]];
       const l = Math.hypot(toEye[0], toEye[1], toEye[2]);
       gl.uniform3f(gl.getUniformLocation(surface, "light"), toEye[0] / l, toEye[1] / l, toEye[2] / l);
-      gl.uniform1f(gl.getUniformLocation(surface, "byNormal"), view.byNormal);
-      for (const [name, b] of [["p", positionBuffer], ["n", normalBuffer]]) {
+      gl.uniform1f(gl.getUniformLocation(surface, "mode"), view.mode);
+      gl.uniform1f(gl.getUniformLocation(surface, "scale"), data.errorScale || 1);
+      for (const [name, b, size] of [["p", positionBuffer, 3], ["n", normalBuffer, 3], ["e", errorBuffer, 1]]) {
         const at = gl.getAttribLocation(surface, name);
         gl.bindBuffer(gl.ARRAY_BUFFER, b);
         gl.enableVertexAttribArray(at);
-        gl.vertexAttribPointer(at, 3, gl.FLOAT, false, 0, 0);
+        gl.vertexAttribPointer(at, size, gl.FLOAT, false, 0, 0);
       }
       gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, indexBuffer);
       gl.drawElements(gl.TRIANGLES, indices.length, gl.UNSIGNED_INT, 0);
@@ -139,24 +154,48 @@
       view.distance = Math.max(0.3 * radius, view.distance * Math.exp(e.deltaY * 0.001));
       draw();
     }, { passive: false });
-    document.getElementById("colour-by-normal").addEventListener("change", (e) => { view.byNormal = e.target.checked ? 1 : 0; draw(); });
+    select.addEventListener("change", () => { view.mode = MODES[select.value]; draw(); });
     draw();
 
-    if (location.hash === "#selftest") {
-      // The share of the canvas the mesh covers, from two directions a quarter turn apart.
-      const covered = [];
-      for (const yaw of [0.6, 0.6 + Math.PI / 2]) {
-        view.yaw = yaw;
-        draw();
-        const pixels = new Uint8Array(canvas.width * canvas.height * 4);
-        gl.readPixels(0, 0, canvas.width, canvas.height, gl.RGBA, gl.UNSIGNED_BYTE, pixels);
-        let differ = 0;
-        for (let i = 0; i < pixels.length; i += 4) {
-          if (Math.abs(pixels[i] - 31) + Math.abs(pixels[i + 1] - 33) + Math.abs(pixels[i + 2] - 38) > 24) differ++;
+    // Draws at `yaw` in `mode` and returns the share of the canvas that is not background and,
+    // of that, the share whose colour is the ramp's warm half (red outweighs blue).
+    return function test(yaw, mode) {
+      Object.assign(view, { yaw, mode: MODES[mode] });
+      draw();
+      const pixels = new Uint8Array(canvas.width * canvas.height * 4);
+      gl.readPixels(0, 0, canvas.width, canvas.height, gl.RGBA, gl.UNSIGNED_BYTE, pixels);
+      let differ = 0, warm = 0;
+      for (let i = 0; i < pixels.length; i += 4) {
+        if (Math.abs(pixels[i] - 31) + Math.abs(pixels[i + 1] - 33) + Math.abs(pixels[i + 2] - 38) > 24) {
+          differ++;
+          if (pixels[i] > pixels[i + 2] + 40) warm++;
         }
-        covered.push(differ / (canvas.width * canvas.height));
       }
-      document.getElementById("selftest").textContent = JSON.stringify({ covered, triangles: indices.length / 3, errors });
+      return { covered: differ / (canvas.width * canvas.height), warm: warm / Math.max(1, differ) };
+    };
+  }
+
+  function start() {
+    const roots = Array.from(document.querySelectorAll(".viewer"));
+    const tests = [];
+    for (const root of roots) {
+      try {
+        tests.push([root, viewer(root)]);
+      } catch (e) {
+        errors.push(String(e));
+        root.querySelector(".mesh-error").textContent = "The 3D view cannot be shown here: " + e;
+      }
+    }
+    if (location.hash === "#selftest") {
+      // Each mesh from two directions a quarter turn apart, shaded, and coloured by its error
+      // where the page holds one.
+      const views = tests.map(([root, test]) => {
+        const covered = [0.6, 0.6 + Math.PI / 2].map((yaw) => test(yaw, "shaded").covered);
+        const byError = root.querySelector("option[value=error]") ? test(0.6, "error") : null;
+        test(0.6, "shaded");
+        return { id: root.id, covered, byError };
+      });
+      document.getElementById("selftest").textContent = JSON.stringify({ views, errors });
     }
   }
 
@@ -166,8 +205,7 @@
     } catch (e) {
       errors.push(String(e));
       const out = document.getElementById("selftest");
-      if (out) out.textContent = JSON.stringify({ covered: [], errors });
-      document.getElementById("mesh-error").textContent = "The 3D view cannot be shown here: " + e;
+      if (out) out.textContent = JSON.stringify({ views: [], errors });
     }
   });
 })();
