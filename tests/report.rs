@@ -24,6 +24,7 @@ fn a_reconstructions_page_shows_the_mesh_in_3d_its_losses_and_figures_offline() 
     }
     assert!(html.contains("<svg class=\"plot\"") && html.matches("<polyline").count() >= 5, "the loss plot");
     assert!(html.contains("<caption>Options</caption>") && html.contains("The model against its input"));
+    assert!(html.contains("<caption>Times</caption>") && out.join("times.json").is_file());
     assert!(html.matches("src=\"data:image/png;base64,").count() >= 2, "comparison and residual pictures");
 
     // The normal error against the truth, measured at the run's last iteration, plotted.

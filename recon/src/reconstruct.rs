@@ -12,13 +12,15 @@ use crate::tracking::{tracked_at, NormalTrack};
 use crate::train::{StepReport, Trainer};
 use crate::{Error, Result};
 use rmvp_dataset::io::atomic::write_bytes_atomically;
-use rmvp_dataset::io::json::write_json;
+use rmvp_dataset::io::json::{read_json, write_json};
 use rmvp_dataset::io::{exr, png};
 use rmvp_dataset::visualize::{aop_picture, contact_sheet, normal_picture, preview};
 use rmvp_dataset::{Image, Mesh, Scene, Split};
+use serde::{Deserialize, Serialize};
 use std::io::Write;
 use std::ops::ControlFlow;
 use std::path::Path;
+use std::time::Instant;
 
 /// Files of an output folder.
 pub const CHECKPOINT: &str = "checkpoint.bin";
@@ -32,6 +34,19 @@ pub const COMPARISON: &str = "comparison.png";
 pub const RESIDUALS_PICTURE: &str = "residuals.png";
 /// Per training view: the residuals' figures ([`crate::residuals::ViewResiduals`]).
 pub const RESIDUALS: &str = "residuals.json";
+/// The run's wall times ([`RunTimes`]).
+pub const TIMES: &str = "times.json";
+
+/// A run's wall times (its folder's [`TIMES`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RunTimes {
+    /// Training, seconds, summed over the calls that trained the run (a stopped run continued).
+    pub training_seconds: f64,
+    /// The mesh and the view outputs, seconds (0 until the run finished).
+    pub results_seconds: f64,
+    /// Worker threads of the last call.
+    pub threads: usize,
+}
 
 /// Train on `scene` into `out`, calling `on_step` after every iteration, then write the results.
 /// The call ends early, checkpointed and without results (the returned trainer has not
@@ -81,11 +96,23 @@ pub fn reconstruct(
     write_bytes_atomically(&log_path, kept.as_bytes())?;
     let mut log = std::fs::OpenOptions::new().append(true).open(&log_path).map_err(|e| Error::io(&log_path, e))?;
     let track = NormalTrack::new(scene, &trainer.set.frame);
+    // Times of earlier calls count where this one continues them.
+    let earlier = match trainer.iteration {
+        0 => RunTimes::default(),
+        _ => read_json::<RunTimes>(&out.join(TIMES), "a run's times").unwrap_or_default(),
+    };
+    let started = Instant::now();
+    let times = |results_seconds: f64| RunTimes {
+        training_seconds: earlier.training_seconds + started.elapsed().as_secs_f64() - results_seconds,
+        results_seconds,
+        threads: rayon::current_num_threads(),
+    };
     let mut budget = control.stop_after.unwrap_or(u32::MAX);
     while trainer.iteration < trainer.config.iterations {
         if budget == 0 {
             log.sync_data().map_err(|e| Error::io(&log_path, e))?;
             checkpoint::save(&trainer, Some(options), &checkpoint)?;
+            write_json(&out.join(TIMES), &times(0.0))?;
             return Ok(trainer);
         }
         budget -= 1;
@@ -103,14 +130,17 @@ pub fn reconstruct(
         if on_step(&report, &trainer).is_break() && trainer.iteration < trainer.config.iterations {
             log.sync_data().map_err(|e| Error::io(&log_path, e))?;
             checkpoint::save(&trainer, Some(options), &checkpoint)?;
+            write_json(&out.join(TIMES), &times(0.0))?;
             return Ok(trainer);
         }
     }
+    let trained = started.elapsed().as_secs_f64();
     if options.mesh_only {
         write_mesh(&trainer, out, options.mesh_res, options.mesh_device)?;
     } else {
         write_results(&trainer, scene, out, options.mesh_res, options.mesh_device)?;
     }
+    write_json(&out.join(TIMES), &times(started.elapsed().as_secs_f64() - trained))?;
     Ok(trainer)
 }
 

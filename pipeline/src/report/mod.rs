@@ -17,7 +17,7 @@ use base64::Engine;
 use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::input::{read_bytes, read_text};
 use rmvp_dataset::{Mesh, Scene};
-use rmvp_recon::reconstruct::{COMPARISON, LOG, MESH, RESIDUALS, RESIDUALS_PICTURE};
+use rmvp_recon::reconstruct::{COMPARISON, LOG, MESH, RESIDUALS, RESIDUALS_PICTURE, TIMES};
 use serde_json::Value;
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -71,6 +71,17 @@ pub fn write_recon_report(dir: &Path, scene: Option<&Scene>) -> Result<PathBuf> 
     }
     if let Some(e) = &evaluation {
         html += &evaluation_tables(e);
+    }
+    if let Some(times) = read_json(&dir.join(TIMES))? {
+        let cell = |k: &str| times.get(k).map(figure).unwrap_or_default();
+        let _ = write!(
+            html,
+            "<table><caption>Times</caption><tr><th>training, seconds</th><td>{}</td></tr>\
+             <tr><th>mesh and outputs, seconds</th><td>{}</td></tr><tr><th>threads</th><td>{}</td></tr></table>",
+            cell("training_seconds"),
+            cell("results_seconds"),
+            cell("threads")
+        );
     }
     if let Some(residuals) = read_json(&dir.join(RESIDUALS))? {
         html += &residual_table(&residuals);
