@@ -17,7 +17,6 @@ Needs numpy and OpenCV (`scripts/install-system-deps.sh bench`).
 import argparse
 import os
 
-import cv2
 import numpy as np
 
 SIZE = 600
@@ -60,6 +59,8 @@ def read_positions(path):
 
 
 def main():
+    import cv2  # only to draw: the readers above serve scripts without OpenCV
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out")
     parser.add_argument("truth")

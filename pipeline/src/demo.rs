@@ -252,7 +252,7 @@ pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result
     png::write_png_u8(&out.join(CONTACT_SHEET), &contact_sheet(&comparison.tiles, 4))?;
 
     announce(&format!("6/6 reconstructing the dataset (NeRSP, fast preset, {} iterations)", options.recon_iterations));
-    let reconstruction = reconstruct_and_evaluate(&dataset, &truth, &out.join(RECON_FOLDER), options)?;
+    let reconstruction = reconstruct_and_evaluate(dataset, &truth, &out.join(RECON_FOLDER), options)?;
 
     let report = DemoReport {
         capture: CaptureSummary {
@@ -354,7 +354,12 @@ fn dataset_summary(record: &BuildRecord) -> DatasetSummary {
 }
 
 /// Reconstruct `dataset` into `dir` and evaluate the mesh against `truth`.
-fn reconstruct_and_evaluate(dataset: &Scene, truth: &Scene, dir: &Path, options: &DemoOptions) -> Result<ReconSummary> {
+fn reconstruct_and_evaluate(
+    mut dataset: Scene,
+    truth: &Scene,
+    dir: &Path,
+    options: &DemoOptions,
+) -> Result<ReconSummary> {
     let recon_options = ReconOptions {
         iters: Some(options.recon_iterations),
         mesh_res: options.mesh_resolution,
@@ -363,12 +368,11 @@ fn reconstruct_and_evaluate(dataset: &Scene, truth: &Scene, dir: &Path, options:
     };
     let bar = progress_bar(options.progress, options.recon_iterations as u64, "recon");
     // The truth's normals beside the dataset's views: training tracks its normal error.
-    let mut with_truth = dataset.clone();
-    for view in &mut with_truth.views {
+    for view in &mut dataset.views {
         view.normals = truth.view(&view.name).and_then(|t| t.normals.clone());
     }
     let started = std::time::Instant::now();
-    reconstruct(&with_truth, dir, &recon_options, RunControl::default(), |_, trainer| {
+    reconstruct(&dataset, dir, &recon_options, RunControl::default(), |_, trainer| {
         bar.set_position(trainer.iteration as u64);
         ControlFlow::Continue(())
     })?;

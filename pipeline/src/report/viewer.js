@@ -155,6 +155,12 @@
       draw();
     }, { passive: false });
     select.addEventListener("change", () => { view.mode = MODES[select.value]; draw(); });
+    // `#colour=normal` or `#colour=error` in the address chooses the colouring.
+    const asked = /colour=(\w+)/.exec(location.hash);
+    if (asked && select.querySelector("option[value=" + asked[1] + "]")) {
+      select.value = asked[1];
+      view.mode = MODES[asked[1]];
+    }
     draw();
 
     // Draws at `yaw` in `mode` and returns the share of the canvas that is not background and,
