@@ -38,18 +38,7 @@ pub fn write_dataset_report(
     let mut html = page_start(title);
     // The page's heading is the title: a datasheet's own is left out.
     let datasheet = datasheet.strip_prefix(&format!("# {title}\n")).unwrap_or(datasheet);
-    let parser = pulldown_cmark::Parser::new_ext(datasheet, pulldown_cmark::Options::ENABLE_TABLES);
-    // The datasheet comes from rmvp's own records; raw HTML in it (a name from a file) is shown
-    // as text, never as markup.
-    let parser = parser.map(|event| match event {
-        pulldown_cmark::Event::Html(text) | pulldown_cmark::Event::InlineHtml(text) => {
-            pulldown_cmark::Event::Text(text)
-        }
-        other => other,
-    });
-    html += "<div class=\"datasheet\">";
-    pulldown_cmark::html::push_html(&mut html, parser);
-    html += "</div>";
+    html += &datasheet_html(datasheet);
     for (k, object) in objects.iter().enumerate() {
         let _ = write!(html, "<h2>{}</h2>", escape(object.name));
         match &object.scene.mesh {
@@ -71,6 +60,28 @@ pub fn write_dataset_report(
     let page = dir.join(PAGE);
     write_bytes_atomically(&page, html.as_bytes())?;
     Ok(page)
+}
+
+/// A datasheet's Markdown as HTML. Its text comes from records that quote files (a camera's
+/// name, a scan's file name), so what it cannot mean is disarmed: raw HTML is shown as text, a
+/// link leads only to a web page (http or https), and no image is fetched.
+fn datasheet_html(markdown: &str) -> String {
+    use pulldown_cmark::{Event, Tag};
+    let web = |url: &str| url.starts_with("https://") || url.starts_with("http://");
+    let events =
+        pulldown_cmark::Parser::new_ext(markdown, pulldown_cmark::Options::ENABLE_TABLES).map(|event| match event {
+            Event::Html(text) | Event::InlineHtml(text) => Event::Text(text),
+            Event::Start(Tag::Link { link_type, dest_url, title, id }) if !web(&dest_url) => {
+                Event::Start(Tag::Link { link_type, dest_url: "".into(), title, id })
+            }
+            Event::Start(Tag::Image { link_type, title, id, .. }) => {
+                Event::Start(Tag::Image { link_type, dest_url: "".into(), title, id })
+            }
+            other => other,
+        });
+    let mut html = String::from("<div class=\"datasheet\">");
+    pulldown_cmark::html::push_html(&mut html, events);
+    html + "</div>"
 }
 
 /// Every view of `scene` as one picture (S0, AoP by DoP, true normals, those it has) with its
@@ -107,4 +118,21 @@ fn view_strip(view: &View) -> Option<Image<u8>> {
     let shrunk: Vec<Image<u8>> =
         view_pictures(view).into_iter().flatten().map(|p| downsample(&p, p.width().div_ceil(TILE_WIDTH))).collect();
     (!shrunk.is_empty()).then(|| contact_sheet(&shrunk, shrunk.len()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_datasheet_renders_its_tables_and_nothing_a_quoted_file_could_slip_in() {
+        let html = datasheet_html(
+            "| a | b |\n| --- | --- |\n| 1 | 2 |\n\n- Camera: <script>alert(1)</script> \
+             [x](javascript:alert(1)) ![y](https://example.org/y.png) [licence](https://spdx.org/licenses/CC-BY-4.0.html)\n",
+        );
+        assert!(html.contains("<table>") && html.contains("<td>1</td>"), "{html}");
+        assert!(!html.contains("<script") && html.contains("&lt;script&gt;"), "{html}");
+        assert!(!html.contains("javascript:") && !html.contains("example.org"), "{html}");
+        assert!(html.contains("href=\"https://spdx.org/licenses/CC-BY-4.0.html\""), "{html}");
+    }
 }

@@ -1,11 +1,12 @@
 //! One page (`report.html`) per reconstruction, batch, built dataset and release,
-//! self-contained: nothing fetched, no server. A reconstruction's: the mesh in an interactive 3D
-//! view (our own small WebGL code, `viewer.js`) with the views' cameras as frustums, coloured by
-//! its distance to the truth where there is one, the training's losses and normal error plotted
-//! (SVG), the figures as tables (options, evaluation, residuals), and the pictures the run wrote
-//! (comparison, residuals, normal error maps); a batch's: a sortable row per task linking to its
-//! page; a dataset's ([`dataset`]): its datasheet, its truth in 3D and a grid of its views. Meshes above [`PAGE_TRIANGLES`] triangles are decimated for the page, which says so;
-//! the full mesh stays beside it.
+//! self-contained: nothing fetched, no server. A reconstruction's: the mesh in an interactive
+//! 3D view (our own small WebGL code, `viewer.js`) with the views' cameras as frustums, coloured
+//! by its distance to the truth where there is one, the training's losses and normal error
+//! plotted (SVG), the figures as tables (options, evaluation, times, residuals), and the
+//! pictures the run wrote (comparison, residuals, normal error maps); a batch's: a sortable row
+//! per task linking to its page; a dataset's ([`dataset`]): its datasheet, its truth in 3D and
+//! a grid of its views. Meshes above [`PAGE_TRIANGLES`] triangles are decimated for the page,
+//! which says so; the full mesh stays beside it.
 
 mod dataset;
 
