@@ -63,11 +63,16 @@ pub fn import_poses(dir: &Path, source: &Path, min_views: usize) -> Result<PoseS
         }
         Ok(named.iter().map(|(n, c)| (stem(n), c.clone())).collect())
     };
+    // The world is named by the source's last two path components (`simulated/cameras.npz`,
+    // `sparse/0`): poses.json travels into published datasheets, where the rest of a path of
+    // the machine that imported it means nothing.
+    let tail: Vec<_> = source.components().rev().take(2).collect();
+    let source_name = tail.iter().rev().collect::<std::path::PathBuf>().display().to_string();
     let (cameras, residuals, world): Imported = if source.is_dir() {
         let model = ColmapModel::read(source)?;
         let cameras = check(&model.cameras(source)?, "COLMAP")?;
         let residuals = cameras.iter().enumerate().map(|(i, (_, c))| model.residual(i, c)).collect();
-        (cameras, residuals, format!("the COLMAP model's ({})", source.display()))
+        (cameras, residuals, format!("the COLMAP model's ({source_name})"))
     } else if extension == "npz" {
         let (world_mats, _) = nersp::read_cameras(source)?;
         let size = view_size()?;
@@ -82,11 +87,11 @@ pub fn import_poses(dir: &Path, source: &Path, min_views: usize) -> Result<PoseS
             })
             .collect::<Result<Vec<_>>>()?;
         let n = cameras.len();
-        (cameras, vec![(f64::NAN, 0); n], format!("the world_mat frame of {}", source.display()))
+        (cameras, vec![(f64::NAN, 0); n], format!("the world_mat frame of {source_name}"))
     } else {
         let cameras = check(&Transforms::read(source)?.cameras(source)?, "transforms.json")?;
         let n = cameras.len();
-        (cameras, vec![(f64::NAN, 0); n], format!("the transforms' world ({})", source.display()))
+        (cameras, vec![(f64::NAN, 0); n], format!("the transforms' world ({source_name})"))
     };
     let (mut views, mut failed) = (Vec::new(), Vec::new());
     for name in &names {
