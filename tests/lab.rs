@@ -224,6 +224,9 @@ fn a_lab_session_becomes_posed_masked_views() {
     let result = browser::selftest(&release.join("report.html"), &tmp.path().join("profile"));
     assert!(result["errors"] == serde_json::json!([]) && result["views"].as_array().unwrap().len() == 1, "{result}");
     assert!(browser::covered(&result["views"][0]).iter().all(|&c| c > 0.02 && c < 0.9), "{result}");
+    // The release's build record names its inputs without this machine's paths.
+    let released = std::fs::read_to_string(release.join("lab/build.json")).unwrap();
+    assert!(released.contains("\"scan.ply\"") && !released.contains(s(tmp.path())), "{released}");
     let built = std::fs::read_to_string(dataset.join("report.html")).unwrap();
     assert!(built.contains("| reference |") || built.contains("<td>reference</td>"), "the build's stages");
 

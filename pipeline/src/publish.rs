@@ -10,7 +10,8 @@
 //! RELEASE/report.html                the datasheet, each object's truth in 3D and its views
 //!                                    (crate::report), the checksums
 //! RELEASE/SHA256SUMS                 `sha256sum -c` format, every other file
-//! RELEASE/<object>/build.json        the build record (rmvp_pipeline::build::BuildRecord)
+//! RELEASE/<object>/build.json        the build record (rmvp_pipeline::build::BuildRecord),
+//!                                    its input files named without their paths
 //! RELEASE/<object>/nersp/ rmvp/      the two layouts
 //! RELEASE/<object>/contact/s0.png aop_dop.png normals.png
 //! ```
@@ -121,7 +122,8 @@ pub fn publish(options: &PublishOptions) -> Result<Release> {
         for layout in [Layout::Nersp, Layout::Rmvp] {
             copy_tree(&dataset.join(layout.name()), &dir.join(layout.name()))?;
         }
-        copy_file(&dataset.join(crate::build::BUILD_FILE), &dir.join(crate::build::BUILD_FILE))?;
+        // The record without the building machine's paths.
+        record.for_release().write(&dir)?;
         write_contact_sheets(&scene, &dir.join(CONTACT_FOLDER))?;
         objects.push((name, record, scene));
     }

@@ -295,12 +295,36 @@ impl BuildRecord {
         Ok(record)
     }
 
-    pub(super) fn write(&self, dataset: &Path) -> Result<()> {
+    /// Write `DATASET/build.json` (atomically).
+    pub(crate) fn write(&self, dataset: &Path) -> Result<()> {
         Ok(write_json(&dataset.join(BUILD_FILE), self)?)
     }
 
     pub(super) fn done(&self, stage: Stage) -> bool {
         self.stages.iter().any(|s| s.name == stage)
+    }
+
+    /// The record as a release publishes it: each input file named by its file name alone, not
+    /// by its path on the machine that built it.
+    pub fn for_release(&self) -> Self {
+        let name = |path: &Path| PathBuf::from(path.file_name().unwrap_or_default());
+        let mut record = self.clone();
+        let options = &mut record.options;
+        options.session = name(&options.session);
+        options.calibration = options.calibration.as_deref().map(name);
+        if let Some(scan) = options.scan.as_mut() {
+            scan.path = name(&scan.path);
+        }
+        if let Some(panorama) = options.panorama.as_mut() {
+            panorama.path = name(&panorama.path);
+        }
+        if let Some(scan) = record.scan.as_mut() {
+            scan.file = name(&scan.file);
+        }
+        if let Some(environment) = record.environment.as_mut() {
+            environment.file = name(&environment.file);
+        }
+        record
     }
 
     /// The object's part of a datasheet (Markdown): camera, settings, calibration, poses, the
