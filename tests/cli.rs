@@ -6,6 +6,8 @@ use rmvp_pipeline::demo::DemoReport;
 use rmvp_testkit::fixture;
 use std::path::Path;
 
+#[path = "common/browser.rs"]
+mod browser;
 mod common;
 use common::{fails, ok, s};
 
@@ -54,8 +56,16 @@ fn demo_captures_builds_a_dataset_and_reconstructs_it() {
     let log = std::fs::read_to_string(out.join("recon/log.jsonl")).unwrap();
     assert!(log.lines().last().unwrap().contains("\"normal_error_deg\":"), "{log}");
     assert!(out.join("dataset/report.html").is_file());
-    // The page (tests/report.rs opens one in a browser) stays small.
+    // The page stays small and opens offline: no error, the mesh drawn from two directions
+    // and coloured by its distance to the truth.
     assert!(std::fs::metadata(out.join("recon/report.html")).unwrap().len() < 20 << 20);
+    let result = browser::selftest(&out.join("recon/report.html"), &tmp.path().join("profile"));
+    assert_eq!(result["errors"], serde_json::json!([]), "{result}");
+    let view = &result["views"][0];
+    assert!(
+        browser::covered(view).iter().all(|&c| c > 0.02) && view["byError"]["covered"].as_f64() > Some(0.02),
+        "{result}"
+    );
     // --mesh-only: no view outputs (`rmvp recon`'s own test covers them).
     assert!(report.reconstruction.comparison.is_none() && !out.join("recon/normals").exists(), "{report:?}");
 
