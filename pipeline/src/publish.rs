@@ -1,8 +1,8 @@
 //! Releases of built datasets (`rmvp dataset publish`): one folder per object (both layouts
 //! and the build record), contact sheets, a generated datasheet (`README.md`), a page to look
-//! at (`report.html`) and `SHA256SUMS`; optionally a tar or zip archive of the whole. A release is written beside its
-//! final place (`RELEASE.partial`) and moved there whole, so that a folder named like a
-//! release is always complete.
+//! at (`report.html`) and `SHA256SUMS`; optionally a tar or zip archive of the whole. A release
+//! is written beside its final place (`RELEASE.partial`) and moved there whole, so that a
+//! folder named like a release is always complete.
 //!
 //! ```text
 //! RELEASE/README.md                  datasheet: objects, camera, calibration, poses, scan
