@@ -45,11 +45,9 @@ pub struct Batch {
     pub left_out_draws: Vec<f32>,
 }
 
-/// What a step's compute returns.
+/// What a step's compute returns beside the gradient it writes.
 #[derive(Clone, Debug)]
-pub struct StepGradient {
-    /// The gradient of the weighted losses, over the whole parameter vector.
-    pub grad: Vec<f32>,
+pub struct StepLosses {
     /// Each term's loss, unweighted.
     pub losses: PerTerm<f64>,
     /// Samples evaluated.
@@ -58,7 +56,9 @@ pub struct StepGradient {
 
 /// An engine that computes a step's gradient.
 pub trait StepCompute: Send + Sync {
-    /// The gradient and losses of `batch` for `model` at `params` on `set` under `config`.
+    /// The losses of `batch` for `model` at `params` on `set` under `config`; their gradient
+    /// is written over `grad` (as long as `params`), which the caller keeps from step to step
+    /// so that no step allocates or first-touches the whole parameter vector.
     fn gradient(
         &self,
         model: &Model,
@@ -66,7 +66,8 @@ pub trait StepCompute: Send + Sync {
         set: &TrainingSet,
         config: &TrainConfig,
         batch: &Batch,
-    ) -> StepGradient;
+        grad: &mut [f32],
+    ) -> StepLosses;
 }
 
 /// rmvp's engine on the CPU: chunks of rays in parallel (rayon), summed in order.
@@ -108,7 +109,8 @@ impl StepCompute for CpuStep {
         set: &TrainingSet,
         config: &TrainConfig,
         batch: &Batch,
-    ) -> StepGradient {
+        grad: &mut [f32],
+    ) -> StepLosses {
         let rays = &batch.rays;
         let masked_total = rays.iter().filter(|&&(v, p)| set.views[v as usize].mask[p as usize]).count().max(1);
         let chunks: Vec<Range<usize>> =
@@ -125,7 +127,7 @@ impl StepCompute for CpuStep {
             chunks.into_par_iter().map(|range| step.chunk(range)).collect();
         // Summed in chunk order (the networks') and level by level in chunk order (the hash
         // grid's): the same step whatever the number of threads.
-        let mut grad = vec![0f32; params.len()];
+        grad[..model.network_params()].fill(0.0);
         let mut sums = ChunkSums::default();
         for (g, _, s) in &results {
             grad[..g.len()].iter_mut().zip(g).for_each(|(a, b)| *a += b);
@@ -135,8 +137,8 @@ impl StepCompute for CpuStep {
             sums.samples += s.samples;
         }
         let grid: Vec<&GridGradient> = results.iter().map(|r| &r.1).collect();
-        model.field.add_grid_gradients(&grid, &batch.level_weight, &mut grad);
-        StepGradient { grad, losses: sums.losses, samples: sums.samples }
+        model.field.write_grid_gradients(&grid, &batch.level_weight, grad);
+        StepLosses { losses: sums.losses, samples: sums.samples }
     }
 }
 

@@ -12,7 +12,8 @@ use crate::engine::Adam;
 use crate::losses::PerTerm;
 use crate::model::Model;
 use crate::occupancy::{OccupancyGrid, REFRESH_EVERY};
-use crate::step::{Batch, CpuStep, StepCompute, StepGradient};
+use crate::step::{Batch, CpuStep, StepCompute, StepLosses};
+use rayon::prelude::*;
 use rmvp_dataset::rng::Rng;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -88,6 +89,8 @@ pub struct Trainer {
     pub iteration: u32,
     /// The engine that computes each step's gradient.
     compute: Box<dyn StepCompute>,
+    /// The step's gradient, kept from step to step (as long as `params`).
+    grad: Vec<f32>,
     /// Consecutive non-finite steps.
     bad_steps: u32,
     /// The last state known to be finite (every 100 iterations): (params, adam, iteration).
@@ -108,8 +111,9 @@ impl Trainer {
         let adam = Adam::new(params.len());
         let safe = (params.clone(), adam.clone(), 0);
         let compute = Box::new(CpuStep);
+        let grad = vec![0.0; params.len()];
         let mut trainer =
-            Self { config, model, set, params, adam, iteration: 0, compute, bad_steps: 0, safe, occupancy: None };
+            Self { config, model, set, params, adam, iteration: 0, compute, grad, bad_steps: 0, safe, occupancy: None };
         trainer.refresh_occupancy();
         trainer
     }
@@ -171,8 +175,8 @@ impl Trainer {
         let left_out_draws = (0..draws).map(|_| rng.next_f32()).collect();
         let batch =
             Batch { rays: batch, jitter, level_weight, fd_step, warm, use_geometric, occupancy, left_out_draws };
-        let StepGradient { grad, losses, samples } =
-            self.compute.gradient(&self.model, &self.params, &self.set, &self.config, &batch);
+        let StepLosses { losses, samples } =
+            self.compute.gradient(&self.model, &self.params, &self.set, &self.config, &batch, &mut self.grad);
         let w = &self.config.weights;
         let mut report = StepReport {
             iteration: it,
@@ -186,7 +190,7 @@ impl Trainer {
             event: None,
             normal_error_deg: None,
         };
-        if !report.loss.is_finite() || grad.iter().any(|g| !g.is_finite()) {
+        if !report.loss.is_finite() || self.grad.par_iter().any(|g| !g.is_finite()) {
             self.bad_steps += 1;
             if self.bad_steps >= 3 {
                 let (params, adam, at) = self.safe.clone();
@@ -202,10 +206,14 @@ impl Trainer {
             return report;
         }
         self.bad_steps = 0;
-        self.adam.step(&self.model.layout, &self.config.adam, &mut self.params, &grad, it, self.config.iterations);
+        self.adam.step(&self.model.layout, &self.config.adam, &mut self.params, &self.grad, it, self.config.iterations);
         self.iteration += 1;
         if self.iteration.is_multiple_of(100) {
-            self.safe = (self.params.clone(), self.adam.clone(), self.iteration);
+            // Into the buffers the last safe state had.
+            let (params, adam, at) = &mut self.safe;
+            params.clone_from(&self.params);
+            adam.clone_from(&self.adam);
+            *at = self.iteration;
         }
         report
     }

@@ -412,7 +412,7 @@ impl Forward {
     /// Backward pass: `ray_grads` per ray, `d_gradients` (n x 3, e.g. from the Eikonal loss) on
     /// the SDF gradients and `d_laplacians` (n, the curvature loss) on the Laplacians; adds the
     /// networks' parameter gradients into `grad` (at least [`Model::network_params`] long) and
-    /// returns the hash grid's (for [`Field::add_grid_gradients`](crate::model::Field::add_grid_gradients)).
+    /// returns the hash grid's (for [`Field::write_grid_gradients`](crate::model::Field::write_grid_gradients)).
     pub fn backward(
         &self,
         model: &Model,

@@ -347,7 +347,7 @@ fn check_volume_rendering(label: &str, model: &Model, params: &[f32], lw: &[f32]
     assert!(f.rays.iter().any(|o| o.opacity > 0.1), "rays should cross the initial sphere");
     let mut grad = vec![0f32; params.len()];
     let grid = f.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
-    model.field.add_grid_gradients(&[&grid], lw, &mut grad);
+    model.field.write_grid_gradients(&[&grid], lw, &mut grad);
     let nonzero: Vec<usize> = (0..params.len()).filter(|&i| grad[i] != 0.0).collect();
     let mut indices = pick(nonzero.len(), 400, 41).into_iter().map(|k| nonzero[k]).collect::<Vec<_>>();
     indices.push(model.variance);

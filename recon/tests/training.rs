@@ -290,10 +290,11 @@ fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_re
         left_out_draws: Vec::new(),
     };
     let (model, params) = (&trainer.model, &trainer.params);
-    let regularisers = |g: &rmvp_recon::step::StepGradient| [g.losses[Term::Eikonal], g.losses[Term::Curvature]];
+    let regularisers = |g: &rmvp_recon::step::StepLosses| [g.losses[Term::Eikonal], g.losses[Term::Curvature]];
     let mut every_config = config.clone();
     every_config.sampling.min_weight = 0.0;
-    let every = CpuStep.gradient(model, params, &set, &every_config, &batch);
+    let mut grad = vec![0f32; params.len()];
+    let every = CpuStep.gradient(model, params, &set, &every_config, &batch, &mut grad);
     let every_samples = batch.rays.len() * (config.sampling.coarse + config.sampling.fine);
     assert_eq!(every.samples, every_samples);
     let draws = 200;
@@ -301,7 +302,7 @@ fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_re
     let mut taken = 0;
     for _ in 0..draws {
         batch.left_out_draws = (0..2 * batch.rays.len()).map(|_| rng.next_f32()).collect();
-        let weighted = CpuStep.gradient(model, params, &set, &config, &batch);
+        let weighted = CpuStep.gradient(model, params, &set, &config, &batch, &mut grad);
         taken = weighted.samples;
         estimates.push(regularisers(&weighted));
     }
@@ -317,4 +318,40 @@ fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_re
         assert!((mean - truth).abs() < 4.0 * standard_error, "{name}: {mean} against {truth}");
         assert!(spread < 0.5 * truth, "{name}: spread {spread} of {truth}");
     }
+}
+
+#[test]
+fn a_step_writes_its_whole_gradient_over_the_buffer_it_is_given() {
+    use rmvp_recon::step::{Batch, CpuStep, StepCompute};
+    let scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
+    let mut config = small_config(100);
+    config.batch_rays = 64;
+    config.diffuse_only = 0;
+    let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
+    let trainer = Trainer::new(config.clone(), set.clone());
+    // At the start the finer levels are off: their tables' gradients are zeros to be written too.
+    let level_weight = trainer.level_weight();
+    assert!(level_weight.contains(&0.0) && level_weight.contains(&1.0), "{level_weight:?}");
+    let mut rng = rmvp_dataset::rng::Rng::for_pixel(11 + rmvp_testkit::test_seed(), 0, 0);
+    let rays: Vec<(u32, u32)> =
+        (0..config.batch_rays).map(|_| set.pool[rng.next_u32() as usize % set.pool.len()]).collect();
+    let batch = Batch {
+        jitter: rays.iter().map(|_| rng.next_f32()).collect(),
+        rays,
+        fd_step: trainer.fd_step(&level_weight),
+        level_weight,
+        warm: false,
+        use_geometric: true,
+        occupancy: trainer.occupancy().cloned().map(std::sync::Arc::new),
+        left_out_draws: Vec::new(),
+    };
+    let (model, params) = (&trainer.model, &trainer.params);
+    let mut fresh = vec![0f32; params.len()];
+    CpuStep.gradient(model, params, &set, &config, &batch, &mut fresh);
+    // A buffer that still holds another step's numbers: here NaN everywhere.
+    let mut reused = vec![f32::NAN; params.len()];
+    CpuStep.gradient(model, params, &set, &config, &batch, &mut reused);
+    assert!(fresh.iter().any(|&g| g != 0.0));
+    let differ = fresh.iter().zip(&reused).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
+    assert_eq!(differ, 0, "{differ} of {} entries differ", params.len());
 }

@@ -1,6 +1,8 @@
 //! Adam with per-group learning rates, linear warm-up and cosine decay (NeuS's schedule).
 
 use super::params::{Group, ParamLayout};
+use multiversion::multiversion;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 /// Learning rates and schedule.
@@ -77,14 +79,28 @@ impl Adam {
             };
             let lr = lr * factor;
             let r = range.clone();
-            for (((p, &g), m), v) in
-                params[r.clone()].iter_mut().zip(&grad[r.clone()]).zip(&mut self.m[r.clone()]).zip(&mut self.v[r])
-            {
-                *m = BETA1 * *m + (1.0 - BETA1) * g;
-                *v = BETA2 * *v + (1.0 - BETA2) * g * g;
-                *p -= lr * (*m / c1) / ((*v / c2).sqrt() + eps);
-            }
+            // In parallel blocks: each parameter's update is its own, so every thread count
+            // gives the same bits.
+            params[r.clone()]
+                .par_chunks_mut(BLOCK)
+                .zip(grad[r.clone()].par_chunks(BLOCK))
+                .zip(self.m[r.clone()].par_chunks_mut(BLOCK))
+                .zip(self.v[r].par_chunks_mut(BLOCK))
+                .for_each(|(((p, g), m), v)| update(p, g, m, v, [lr, eps, c1, c2]));
         }
+    }
+}
+
+/// Parameters an Adam thread updates at a time.
+const BLOCK: usize = 1 << 14;
+
+/// Adam's update of one block, `[lr, eps, c1, c2]` the rate, epsilon and bias corrections.
+#[multiversion(targets("x86_64+avx512f", "x86_64+avx2"))]
+fn update(params: &mut [f32], grad: &[f32], m: &mut [f32], v: &mut [f32], [lr, eps, c1, c2]: [f32; 4]) {
+    for (((p, &g), m), v) in params.iter_mut().zip(grad).zip(m.iter_mut()).zip(v.iter_mut()) {
+        *m = BETA1 * *m + (1.0 - BETA1) * g;
+        *v = BETA2 * *v + (1.0 - BETA2) * g * g;
+        *p -= lr * (*m / c1) / ((*v / c2).sqrt() + eps);
     }
 }
 

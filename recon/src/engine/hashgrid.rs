@@ -75,7 +75,8 @@ impl HashGrid {
     }
 
     /// The eight corners of `p`'s cell at `level`: their entries' positions in the level's
-    /// table, and their trilinear weights.
+    /// table, and their trilinear weights. Inlined into the encoding's and the scatter's loops.
+    #[inline(always)]
     fn corners(&self, level: usize, p: [f32; 3]) -> Corners {
         let res = self.resolutions[level];
         let side = res as usize + 1;
@@ -137,17 +138,19 @@ impl HashGrid {
         }
     }
 
-    /// Scatter `d_out` (n x outputs) at `points` into the table gradients.
+    /// Write the table gradients of `d_out` (n x outputs) at `points` over `grad`'s tables.
     pub fn backward(&self, points: &[f32], level_weight: &[f32], d_out: &[f32], grad: &mut [f32]) {
         self.backward_batches(&[(points, d_out)], level_weight, grad);
     }
 
-    /// Scatter several batches' `(points, d_out)` into the table gradients: the levels in
-    /// parallel, each level's batches in order (the same sums whatever the number of threads).
+    /// Write the table gradients of several batches' `(points, d_out)` over `grad`'s tables:
+    /// the levels in parallel, each level's table cleared and its batches scattered in order
+    /// while it is in cache (the same sums whatever the number of threads).
     pub fn backward_batches(&self, batches: &[(&[f32], &[f32])], level_weight: &[f32], grad: &mut [f32]) {
         let width = self.outputs();
         let tables = &mut grad[self.offset..self.offset + self.levels * self.table * FEATURES];
         tables.par_chunks_mut(self.table * FEATURES).enumerate().for_each(|(level, table)| {
+            table.fill(0.0);
             let lw = level_weight.get(level).copied().unwrap_or(0.0);
             if lw == 0.0 {
                 return;

@@ -118,7 +118,7 @@ impl Field {
 
     /// Add the network's parameter gradients of `d_out` (n x outputs) into `grad` (which
     /// needs to cover the networks only, [`super::Model::network_params`]); the hash grid's are
-    /// returned, to be added by [`Field::add_grid_gradients`].
+    /// returned, to be written by [`Field::write_grid_gradients`].
     pub fn backward(&self, params: &[f32], cache: &FieldCache, d_out: &[f32], grad: &mut [f32]) -> GridGradient {
         let d_in = self.mlp.backward(params, &cache.mlp, d_out, grad);
         match &self.grid {
@@ -131,9 +131,10 @@ impl Field {
         }
     }
 
-    /// Add the hash grid's parameter gradients of `parts` into `grad` (all parameters),
-    /// level by level in parallel, each level's parts in order.
-    pub fn add_grid_gradients(&self, parts: &[&GridGradient], level_weight: &[f32], grad: &mut [f32]) {
+    /// Write the hash grid's parameter gradients of `parts` over `grad`'s tables (`grad` holds
+    /// all parameters; the networks' are left as they are), level by level in parallel, each
+    /// level's parts in order.
+    pub fn write_grid_gradients(&self, parts: &[&GridGradient], level_weight: &[f32], grad: &mut [f32]) {
         if let Some(g) = &self.grid {
             let batches: Vec<(&[f32], &[f32])> =
                 parts.iter().map(|p| (p.points.as_slice(), p.d_encoding.as_slice())).collect();
