@@ -4,7 +4,8 @@
 //! `RMVP_BENCH_PRESETS=fast,dense,paper`). By default each preset's model is at its start, the
 //! iteration set to `RMVP_BENCH_AT`; `RMVP_BENCH_CHECKPOINT=checkpoint.bin` measures instead
 //! a trained model (a `rmvp recon` run's checkpoint of the spot fixture, its own options), once
-//! as trained and once rendering every sample (`min_weight` 0).
+//! as trained and once rendering every sample (`min_weight` 0); `RMVP_BENCH_SCENE=DIR` trains
+//! on another scene instead of the fixture (the checkpoint's, for a model trained there).
 
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::checkpoint;
@@ -17,10 +18,16 @@ fn main() {
     if !std::env::args().any(|a| a == "--bench") {
         return; // run by `cargo test --all-targets` (no `--bench`): measure only under `cargo bench`
     }
-    let scene = read_scene(&rmvp_testkit::fixture("spot_nersp")).expect("fixture");
+    let scene_dir = std::env::var_os("RMVP_BENCH_SCENE")
+        .map_or_else(|| rmvp_testkit::fixture("spot_nersp"), std::path::PathBuf::from);
+    let scene = read_scene(&scene_dir).expect("scene");
     let steps: u32 = std::env::var("RMVP_BENCH_STEPS").ok().and_then(|s| s.parse().ok()).unwrap_or(20);
     let presets = std::env::var("RMVP_BENCH_PRESETS").unwrap_or_else(|_| "fast,paper".into());
-    println!("recon benchmark: spot fixture, 6 views 128x128, median step over {steps} steps after warm-up");
+    println!(
+        "recon benchmark: {} ({} views), median step over {steps} steps after warm-up",
+        scene_dir.display(),
+        scene.views.len()
+    );
     if let Some(path) = std::env::var_os("RMVP_BENCH_CHECKPOINT") {
         let path = std::path::PathBuf::from(path);
         let recorded = checkpoint::recorded_config(&path).expect("checkpoint");
