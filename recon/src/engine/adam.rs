@@ -76,6 +76,7 @@ impl Adam {
                 Group::Network => (config.lr_network, 1e-8),
                 Group::Grid { level } => (config.lr_grid * config.grid_level_decay.powi(level as i32), 1e-15),
                 Group::Variance => (config.lr_variance, 1e-8),
+                Group::Unused => continue,
             };
             let lr = lr * factor;
             let r = range.clone();

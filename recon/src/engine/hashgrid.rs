@@ -27,12 +27,17 @@ impl HashGrid {
     /// `levels` levels from `base` to `finest` cells per axis, `2^log2_table` entries per level.
     pub fn new(layout: &mut ParamLayout, levels: usize, log2_table: u32, base: u32, finest: u32) -> Self {
         let growth = if levels > 1 { (finest as f64 / base as f64).powf(1.0 / (levels - 1) as f64) } else { 1.0 };
-        let resolutions = (0..levels).map(|l| (base as f64 * growth.powi(l as i32)).round() as u32).collect();
+        let resolutions: Vec<u32> = (0..levels).map(|l| (base as f64 * growth.powi(l as i32)).round() as u32).collect();
         let table = 1usize << log2_table;
-        // One range per level, contiguous: Adam can give each level its own rate.
+        // One range per level, contiguous: Adam can give each level its own rate. A level whose
+        // corners fit its table uses only their entries.
         let offset = layout.len();
-        for level in 0..levels {
-            layout.reserve(table * FEATURES, Group::Grid { level });
+        for (level, &res) in resolutions.iter().enumerate() {
+            let used = (res as usize + 1).pow(3).min(table);
+            layout.reserve(used * FEATURES, Group::Grid { level });
+            if used < table {
+                layout.reserve((table - used) * FEATURES, Group::Unused);
+            }
         }
         Self { levels, table, resolutions, offset }
     }

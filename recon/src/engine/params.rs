@@ -15,6 +15,9 @@ pub enum Group {
     },
     /// The NeuS inverse-standard-deviation parameter.
     Variance,
+    /// Parameters nothing reads (a coarse hash-grid level's table past its cells' corners):
+    /// their gradient is always zero, and Adam leaves them as they are.
+    Unused,
 }
 
 /// The layout of the flat parameter vector, filled module by module.
