@@ -31,7 +31,8 @@ impl TraceRay {
 
 /// Tracing to a trained field's surface: slightly short steps (a learned SDF's slope can exceed
 /// 1), at most 0.05 long.
-pub const SURFACE_LIMITS: TraceLimits = TraceLimits { step_scale: 0.9, max_step: 0.05, max_steps: 128 };
+pub const SURFACE_LIMITS: TraceLimits =
+    TraceLimits { step_scale: 0.9, max_step: 0.05, max_steps: 128, relaxation: 1.0 };
 
 /// How far a trace goes.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -45,6 +46,11 @@ pub struct TraceLimits {
     pub max_step: f32,
     /// Steps before a ray gives up (a ray still running then counts as a miss).
     pub max_steps: usize,
+    /// Over-relaxation (Keinert et al. 2014, "Enhanced Sphere Tracing"): steps are this times
+    /// longer while each point's unbounding sphere overlaps the previous one's; where they do
+    /// not, something may lie between, and the ray goes back to the plain step from the previous
+    /// point and on without relaxation. 1 is plain sphere tracing.
+    pub relaxation: f32,
 }
 
 /// The depth of the first surface along each ray, `None` where it has none before its end.
@@ -55,13 +61,20 @@ pub fn sphere_trace(
     rays: &[TraceRay],
     limits: TraceLimits,
 ) -> Vec<Option<f32>> {
-    let sdf_at = |points: Vec<f32>| model.field.sdf(params, &points, level_weight);
+    trace_field(|points| model.field.sdf(params, &points, level_weight), rays, limits)
+}
+
+/// [`sphere_trace`] through the SDF `sdf_at` gives at points (n x 3).
+fn trace_field(sdf_at: impl Fn(Vec<f32>) -> Vec<f32>, rays: &[TraceRay], limits: TraceLimits) -> Vec<Option<f32>> {
     let mut depth: Vec<f32> = rays.iter().map(|r| r.start).collect();
     let mut previous = depth.clone();
     let mut hit = vec![None; rays.len()];
     // Rays that landed inside the surface: (ray, outside depth, inside depth).
     let mut inside: Vec<(usize, f32, f32)> = Vec::new();
     let mut active: Vec<usize> = (0..rays.len()).filter(|&r| rays[r].start < rays[r].end).collect();
+    // Each ray's relaxation, and its last step with the SDF it was taken from.
+    let mut relaxation = vec![limits.relaxation; rays.len()];
+    let (mut last_step, mut last_radius) = (vec![0f32; rays.len()], vec![0f32; rays.len()]);
     for _ in 0..limits.max_steps {
         if active.is_empty() {
             break;
@@ -69,6 +82,14 @@ pub fn sphere_trace(
         let sdf = sdf_at(active.iter().flat_map(|&r| rays[r].at(depth[r])).collect());
         let mut next = Vec::with_capacity(active.len());
         for (&r, &s) in active.iter().zip(&sdf) {
+            if relaxation[r] > 1.0 && s.abs() + last_radius[r] < last_step[r] {
+                depth[r] = previous[r] + last_step[r] / relaxation[r];
+                relaxation[r] = 1.0;
+                if depth[r] < rays[r].end {
+                    next.push(r);
+                }
+                continue;
+            }
             if s < -HIT && depth[r] > rays[r].start {
                 inside.push((r, previous[r], depth[r]));
                 continue;
@@ -78,7 +99,9 @@ pub fn sphere_trace(
                 continue;
             }
             previous[r] = depth[r];
-            depth[r] += (limits.step_scale * s).min(limits.max_step);
+            last_step[r] = (relaxation[r] * limits.step_scale * s).min(limits.max_step);
+            last_radius[r] = s;
+            depth[r] += last_step[r];
             if depth[r] < rays[r].end {
                 next.push(r);
             }
@@ -103,4 +126,62 @@ pub fn sphere_trace(
         hit[r] = Some(outside);
     }
     hit
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rmvp_dataset::rng::Rng;
+    use std::cell::Cell;
+
+    /// A sphere of radius 0.4 and a plate 0.004 thick across it.
+    fn sphere_and_plate(p: &[f32]) -> f32 {
+        let sphere = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 0.4;
+        let plate = ((p[2] - 0.1).abs() - 0.002).max(p[0].abs().max(p[1].abs()) - 0.7);
+        sphere.min(plate)
+    }
+
+    #[test]
+    fn over_relaxed_tracing_finds_what_plain_tracing_finds_in_fewer_steps() {
+        let mut rng = Rng::for_pixel(5, 0, 0);
+        // Rays leaving points near the surfaces in every direction, many at grazing angles.
+        let rays: Vec<TraceRay> = (0..4000)
+            .map(|_| {
+                let on_plate = rng.next_f32() < 0.5;
+                let origin = if on_plate {
+                    [1.4 * rng.next_f32() - 0.7, 1.4 * rng.next_f32() - 0.7, 0.1 + 0.02 * rng.normal().signum()]
+                } else {
+                    let d = [rng.normal(), rng.normal(), rng.normal()];
+                    let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                    d.map(|x| x / l * 0.42)
+                };
+                let d = [rng.normal(), rng.normal(), rng.normal()];
+                let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                TraceRay { origin, dir: d.map(|x| x / l), start: 0.0, end: 2.0 }
+            })
+            .filter(|r| sphere_and_plate(&r.origin) > 0.01)
+            .collect();
+        let evaluations = Cell::new(0usize);
+        let field = |points: Vec<f32>| {
+            evaluations.set(evaluations.get() + points.len() / 3);
+            points.chunks_exact(3).map(sphere_and_plate).collect::<Vec<f32>>()
+        };
+        let plain = TraceLimits { step_scale: 1.0, max_step: f32::INFINITY, max_steps: 400, relaxation: 1.0 };
+        let relaxed = TraceLimits { relaxation: 1.6, ..plain };
+        let want = trace_field(field, &rays, plain);
+        let plain_evaluations = evaluations.replace(0);
+        let got = trace_field(field, &rays, relaxed);
+        let relaxed_evaluations = evaluations.get();
+        let hits = want.iter().filter(|h| h.is_some()).count();
+        assert!(hits > rays.len() / 5 && hits < rays.len() * 4 / 5, "{hits} of {} rays hit", rays.len());
+        for (k, (a, b)) in want.iter().zip(&got).enumerate() {
+            match (a, b) {
+                (Some(a), Some(b)) => assert!((a - b).abs() < 4.0 * HIT, "ray {k}: depth {b} against {a}"),
+                (None, None) => {}
+                _ => panic!("ray {k}: {b:?} against {a:?} ({:?})", rays[k]),
+            }
+        }
+        println!("evaluations: plain {plain_evaluations}, relaxed {relaxed_evaluations}");
+        assert!(relaxed_evaluations * 10 < plain_evaluations * 9, "{relaxed_evaluations} against {plain_evaluations}");
+    }
 }
