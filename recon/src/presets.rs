@@ -23,7 +23,7 @@ pub enum Preset {
     Paper,
     /// The fast preset's networks on a finer, larger hash grid (to 2048 cells per axis), twice
     /// the rays and 4000 iterations: the reference shape of a dataset from 20-60 views at
-    /// 1224x1024 (24 views: 65 minutes on one thread, about 40 on two).
+    /// 1224x1024 (24 views: about 12 minutes on two threads).
     Dense,
 }
 
