@@ -2,15 +2,18 @@
 //! caught.
 
 use nalgebra::Vector3;
+use rmvp_dataset::rng::Rng;
 use rmvp_dataset::{Scene, Split};
 use rmvp_recon::checkpoint;
 use rmvp_recon::data::TrainingSet;
 use rmvp_recon::extract::{extract_mesh, CpuSdf};
 use rmvp_recon::model::neus_initial_radius;
+use rmvp_recon::occupancy::OccupancyGrid;
 use rmvp_recon::options::{ReconOptions, RunControl};
 use rmvp_recon::output::{render_view as render_outputs, SurfaceGuide};
 use rmvp_recon::presets::{self, Preset};
 use rmvp_recon::reconstruct::reconstruct;
+use rmvp_recon::step::{Batch, CpuStep, StepCompute};
 use rmvp_recon::train::{StepEvent, TrainConfig, Trainer};
 use rmvp_recon::volume::{sample_depths, Forward};
 use rmvp_recon::Error;
@@ -49,6 +52,36 @@ fn small_config(iterations: u32) -> TrainConfig {
     let mut config = presets::training(Preset::Fast, iterations);
     config.batch_rays = 256;
     config
+}
+
+/// The spot fixture's training set and a configuration of 64 rays a step without the
+/// diffuse-only warm-up, for tests of one step's compute.
+fn spot_steps(iterations: u32) -> (TrainConfig, TrainingSet) {
+    let scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
+    let mut config = small_config(iterations);
+    config.batch_rays = 64;
+    config.diffuse_only = 0;
+    let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
+    (config, set)
+}
+
+/// A batch of the configured number of rays that `rng` draws from the training set's pool at
+/// `trainer`'s iteration, read through `occupancy` (None: the field everywhere).
+fn random_batch(trainer: &Trainer, rng: &mut Rng, use_geometric: bool, occupancy: Option<&OccupancyGrid>) -> Batch {
+    let pool = &trainer.set.pool;
+    let rays: Vec<(u32, u32)> =
+        (0..trainer.config.batch_rays).map(|_| pool[rng.next_u32() as usize % pool.len()]).collect();
+    let level_weight = trainer.level_weight();
+    Batch {
+        jitter: rays.iter().map(|_| rng.next_f32()).collect(),
+        rays,
+        fd_step: trainer.fd_step(&level_weight),
+        level_weight,
+        warm: false,
+        use_geometric,
+        occupancy: occupancy.cloned().map(std::sync::Arc::new),
+        left_out_draws: Vec::new(),
+    }
 }
 
 #[test]
@@ -260,13 +293,8 @@ fn without_the_photometric_cue_the_tangent_loss_takes_each_aop_as_measured() {
 #[test]
 fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_rendered() {
     use rmvp_recon::losses::Term;
-    use rmvp_recon::step::{Batch, CpuStep, StepCompute};
-    let scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
-    let mut config = small_config(200);
-    config.batch_rays = 64;
-    config.diffuse_only = 0;
+    let (mut config, set) = spot_steps(200);
     config.sampling.regularised_left_out = 2;
-    let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     let mut trainer = Trainer::new(config.clone(), set.clone());
     for _ in 0..30 {
         trainer.step();
@@ -274,21 +302,9 @@ fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_re
     // As sharp as after a few hundred iterations, so that most samples are left out.
     let variance = trainer.model.variance;
     trainer.params[variance] = 200f32.ln() / rmvp_recon::model::VARIANCE_SCALE;
-    let level_weight = trainer.level_weight();
-    let mut rng = rmvp_dataset::rng::Rng::for_pixel(7 + rmvp_testkit::test_seed(), 0, 0);
-    let rays: Vec<(u32, u32)> =
-        (0..config.batch_rays).map(|_| set.pool[rng.next_u32() as usize % set.pool.len()]).collect();
     // Without the occupancy grid both steps take the same depths on every ray.
-    let mut batch = Batch {
-        jitter: rays.iter().map(|_| rng.next_f32()).collect(),
-        rays,
-        fd_step: trainer.fd_step(&level_weight),
-        level_weight,
-        warm: false,
-        use_geometric: false,
-        occupancy: None,
-        left_out_draws: Vec::new(),
-    };
+    let mut rng = Rng::for_pixel(7 + rmvp_testkit::test_seed(), 0, 0);
+    let mut batch = random_batch(&trainer, &mut rng, false, None);
     let (model, params) = (&trainer.model, &trainer.params);
     let regularisers = |g: &rmvp_recon::step::StepLosses| [g.losses[Term::Eikonal], g.losses[Term::Curvature]];
     let mut every_config = config.clone();
@@ -322,29 +338,13 @@ fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_re
 
 #[test]
 fn a_step_writes_its_whole_gradient_over_the_buffer_it_is_given() {
-    use rmvp_recon::step::{Batch, CpuStep, StepCompute};
-    let scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
-    let mut config = small_config(100);
-    config.batch_rays = 64;
-    config.diffuse_only = 0;
-    let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
+    let (config, set) = spot_steps(100);
     let trainer = Trainer::new(config.clone(), set.clone());
     // At the start the finer levels are off: their tables' gradients are zeros to be written too.
     let level_weight = trainer.level_weight();
     assert!(level_weight.contains(&0.0) && level_weight.contains(&1.0), "{level_weight:?}");
-    let mut rng = rmvp_dataset::rng::Rng::for_pixel(11 + rmvp_testkit::test_seed(), 0, 0);
-    let rays: Vec<(u32, u32)> =
-        (0..config.batch_rays).map(|_| set.pool[rng.next_u32() as usize % set.pool.len()]).collect();
-    let batch = Batch {
-        jitter: rays.iter().map(|_| rng.next_f32()).collect(),
-        rays,
-        fd_step: trainer.fd_step(&level_weight),
-        level_weight,
-        warm: false,
-        use_geometric: true,
-        occupancy: trainer.occupancy().cloned().map(std::sync::Arc::new),
-        left_out_draws: Vec::new(),
-    };
+    let mut rng = Rng::for_pixel(11 + rmvp_testkit::test_seed(), 0, 0);
+    let batch = random_batch(&trainer, &mut rng, true, trainer.occupancy());
     let (model, params) = (&trainer.model, &trainer.params);
     let mut fresh = vec![0f32; params.len()];
     CpuStep.gradient(model, params, &set, &config, &batch, &mut fresh);
