@@ -90,12 +90,13 @@ impl OccupancyGrid {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use rmvp_dataset::rng::Rng;
 
-    /// A sphere of radius 0.5 and a plate 0.004 thick (a sixteenth of a cell) across it.
-    fn sphere_and_plate(p: &[f32]) -> f32 {
+    /// A sphere of radius 0.5 and a plate 0.004 thick (a sixteenth of a cell) across it, at
+    /// `z = 0.3` and out to 0.8 from the axis.
+    pub(crate) fn sphere_and_plate(p: &[f32]) -> f32 {
         let sphere = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 0.5;
         let plate = ((p[2] - 0.3).abs() - 0.002).max(p[0].abs().max(p[1].abs()) - 0.8);
         sphere.min(plate)

@@ -131,15 +131,9 @@ fn trace_field(sdf_at: impl Fn(Vec<f32>) -> Vec<f32>, rays: &[TraceRay], limits:
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::occupancy::tests::sphere_and_plate;
     use rmvp_dataset::rng::Rng;
     use std::cell::Cell;
-
-    /// A sphere of radius 0.4 and a plate 0.004 thick across it.
-    fn sphere_and_plate(p: &[f32]) -> f32 {
-        let sphere = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt() - 0.4;
-        let plate = ((p[2] - 0.1).abs() - 0.002).max(p[0].abs().max(p[1].abs()) - 0.7);
-        sphere.min(plate)
-    }
 
     #[test]
     fn over_relaxed_tracing_finds_what_plain_tracing_finds_in_fewer_steps() {
@@ -149,11 +143,11 @@ mod tests {
             .map(|_| {
                 let on_plate = rng.next_f32() < 0.5;
                 let origin = if on_plate {
-                    [1.4 * rng.next_f32() - 0.7, 1.4 * rng.next_f32() - 0.7, 0.1 + 0.02 * rng.normal().signum()]
+                    [1.6 * rng.next_f32() - 0.8, 1.6 * rng.next_f32() - 0.8, 0.3 + 0.02 * rng.normal().signum()]
                 } else {
                     let d = [rng.normal(), rng.normal(), rng.normal()];
                     let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                    d.map(|x| x / l * 0.42)
+                    d.map(|x| x / l * 0.52)
                 };
                 let d = [rng.normal(), rng.normal(), rng.normal()];
                 let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
