@@ -212,7 +212,9 @@ impl Trainer {
             // Into the buffers the last safe state had.
             let (params, adam, at) = &mut self.safe;
             params.clone_from(&self.params);
-            adam.clone_from(&self.adam);
+            adam.m.clone_from(&self.adam.m);
+            adam.v.clone_from(&self.adam.v);
+            adam.steps = self.adam.steps;
             *at = self.iteration;
         }
         report
