@@ -212,9 +212,7 @@ impl Trainer {
             // Into the buffers the last safe state had.
             let (params, adam, at) = &mut self.safe;
             params.clone_from(&self.params);
-            adam.m.clone_from(&self.adam.m);
-            adam.v.clone_from(&self.adam.v);
-            adam.steps = self.adam.steps;
+            adam.clone_from(&self.adam);
             *at = self.iteration;
         }
         report

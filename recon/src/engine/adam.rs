@@ -28,7 +28,7 @@ fn one() -> f32 {
 }
 
 /// Adam state over the flat parameter vector.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Debug, PartialEq)]
 pub struct Adam {
     /// First moments.
     pub m: Vec<f32>,
@@ -36,6 +36,19 @@ pub struct Adam {
     pub v: Vec<f32>,
     /// Steps taken.
     pub steps: u32,
+}
+
+impl Clone for Adam {
+    fn clone(&self) -> Self {
+        Self { m: self.m.clone(), v: self.v.clone(), steps: self.steps }
+    }
+
+    /// Into `self`'s own buffers (a trainer's last safe state, kept every 100 iterations).
+    fn clone_from(&mut self, source: &Self) {
+        self.m.clone_from(&source.m);
+        self.v.clone_from(&source.v);
+        self.steps = source.steps;
+    }
 }
 
 const BETA1: f32 = 0.9;
