@@ -36,6 +36,7 @@ fn changed(field: &str) -> (&'static str, &'static str) {
         "grid_level_decay" => ("0.8", "0.8"),
         "aop_reliability" => ("0.05", "0.05"),
         "tangent_robust_angle" => ("10", "10.0"),
+        "tangent_views" => ("6", "6"),
         "initial_radius" => ("0.3", "0.3"),
         "learned_polarization" | "diffuse_transmission" | "tangent_azimuth_only" | "specular_tilt" => ("true", "true"),
         "downscale" => ("2", "2"),

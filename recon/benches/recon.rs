@@ -5,7 +5,9 @@
 //! iteration set to `RMVP_BENCH_AT`; `RMVP_BENCH_CHECKPOINT=checkpoint.bin` measures instead
 //! a trained model (a `rmvp recon` run's checkpoint of the spot fixture, its own options), once
 //! as trained and once rendering every sample (`min_weight` 0); `RMVP_BENCH_SCENE=DIR` trains
-//! on another scene instead of the fixture (the checkpoint's, for a model trained there).
+//! on another scene instead of the fixture (the checkpoint's, for a model trained there);
+//! `RMVP_BENCH_TANGENT_VIEWS=N` compares a surface point with at most N views (0: every one)
+//! whatever the checkpoint's run did.
 
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::checkpoint;
@@ -31,6 +33,8 @@ fn main() {
     if let Some(path) = std::env::var_os("RMVP_BENCH_CHECKPOINT") {
         let path = std::path::PathBuf::from(path);
         let recorded = checkpoint::recorded_config(&path).expect("checkpoint");
+        let tangent_views: Option<usize> =
+            std::env::var("RMVP_BENCH_TANGENT_VIEWS").ok().map(|s| s.parse().expect("N"));
         for min_weight in [None, Some(0.0)] {
             for threads in [1, 2] {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
@@ -39,6 +43,7 @@ fn main() {
                     if let Some(w) = min_weight {
                         config.sampling.min_weight = w;
                     }
+                    config.tangent_views = tangent_views.unwrap_or(config.tangent_views);
                     let set = TrainingSet::from_scene(&scene, config.margin).expect("training set");
                     let mut trainer = checkpoint::load(&path, set, &recorded, None).expect("checkpoint");
                     trainer.config = config;

@@ -43,6 +43,11 @@ pub struct TrainConfig {
     /// ([`crate::geometric::curved_robust_scale`]); 0 keeps NeRSP's plain term.
     #[serde(default)]
     pub tangent_robust_angle: f32,
+    /// Views that the geometric loss compares with a surface point, at most: a systematic
+    /// sample of those that face it, drawn for each ray ([`crate::geometric::ViewSample`]);
+    /// 0 compares every one (NeRSP).
+    #[serde(default)]
+    pub tangent_views: usize,
     /// Initial iterations with the diffuse lobe and S0 only, no geometric loss.
     pub diffuse_only: u32,
     /// Dilation of the masks that object rays are drawn from, pixels.

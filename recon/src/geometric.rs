@@ -139,6 +139,7 @@ const VISIBILITY: TraceLimits =
     TraceLimits { step_scale: 1.0, max_step: f32::INFINITY, max_steps: 48, relaxation: 1.6 };
 
 /// One view of one surface point, for the geometric cue.
+#[derive(Clone, Copy)]
 struct Query {
     /// The point's index.
     point: usize,
@@ -165,6 +166,11 @@ struct Query {
 /// each view's `(S1, S2)` that the tilt predicts, times the point's [`correction_share`], is
 /// taken away before the AoP gives the tangents. Each point's [`correction_share`] is returned
 /// with its tangents when the tilt or `curvature` asks for it (else 1).
+///
+/// With a [`ViewSample`], a point that more views face than its `views` is compared with a
+/// systematic sample of them (before the occlusion test): every view that faces it is taken
+/// with the same chance, so the loss's mean over them is an unbiased estimate of the mean over
+/// all, and the sample spreads around the point as the views do.
 #[allow(clippy::too_many_arguments)]
 pub fn tangents(
     set: &TrainingSet,
@@ -175,10 +181,12 @@ pub fn tangents(
     points: &[[f32; 3]],
     normals: &[[f32; 3]],
     curvature: bool,
+    sample: Option<ViewSample>,
 ) -> Vec<PointTangents> {
     let mut queries = Vec::new();
     for (pi, (&x, &n)) in points.iter().zip(normals).enumerate() {
         let world = set.frame.point_to_world(x);
+        let first = queries.len();
         for (vi, view) in set.views.iter().enumerate() {
             let to_camera = normalize([0, 1, 2].map(|k| view.center[k] - x[k]));
             if dot(to_camera, n) <= 0.0 {
@@ -200,6 +208,17 @@ pub fn tangents(
             // A point inside the unit sphere always leaves it; outside, nothing can occlude it.
             let exit = unit_sphere_span(x, to_camera).map_or(0.0, |(_, far)| far);
             queries.push(Query { point: pi, view: vi, pixel: k, origin: x, dir: to_camera, exit, towards, frame });
+        }
+        if let Some(sample) = &sample {
+            let facing = queries.len() - first;
+            if sample.views > 0 && facing > sample.views {
+                let kept = systematic_sample(facing, sample.views, sample.offsets[pi]);
+                for (j, k) in kept.enumerate() {
+                    // k >= j and rising: the query read has not been overwritten.
+                    queries[first + j] = queries[first + k];
+                }
+                queries.truncate(first + sample.views);
+            }
         }
     }
     // Batched sphere tracing towards each camera.
@@ -237,6 +256,23 @@ pub fn tangents(
         });
     }
     out
+}
+
+/// How many of the views that face a surface point the geometric cue compares with it, and
+/// where each point's systematic sample starts.
+#[derive(Clone, Copy, Debug)]
+pub struct ViewSample<'a> {
+    /// Views compared with a point, at most (0: every one).
+    pub views: usize,
+    /// Each point's offset in `[0, 1)`.
+    pub offsets: &'a [f32],
+}
+
+/// The indices of a systematic sample of `n` of `count` items (`n < count`) at `offset` in
+/// `[0, 1)`: `floor((offset + j) count / n)`, rising; each item is in it with chance `n / count`.
+fn systematic_sample(count: usize, n: usize, offset: f32) -> impl Iterator<Item = usize> {
+    let stride = count as f64 / n as f64;
+    (0..n).map(move |j| (((f64::from(offset) + j as f64) * stride) as usize).min(count - 1))
 }
 
 /// The two tangent directions (world frame) that the AoP `aop` (radians, in the ray's Stokes
@@ -331,6 +367,26 @@ mod tests {
         let aop = aop_without(measured, s1.hypot(s2), off_axis);
         assert!((aop - on).abs() < 1e-5, "{} vs 30", aop.to_degrees());
         assert!((aop_without(measured, s1.hypot(s2), [0.0, 0.0]) - measured).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_systematic_sample_takes_every_item_with_the_same_chance() {
+        for count in 2..=24 {
+            for n in 1..count {
+                let offsets = 4096;
+                let mut taken = vec![0usize; count];
+                for k in 0..offsets {
+                    let kept: Vec<usize> = systematic_sample(count, n, (k as f32 + 0.5) / offsets as f32).collect();
+                    assert_eq!(kept.len(), n);
+                    assert!(kept.windows(2).all(|w| w[0] < w[1]) && kept[n - 1] < count, "{kept:?}");
+                    kept.iter().for_each(|&i| taken[i] += 1);
+                }
+                for (i, &t) in taken.iter().enumerate() {
+                    let chance = t as f64 / offsets as f64;
+                    assert!((chance - n as f64 / count as f64).abs() < 1e-3, "{n} of {count}: item {i} {chance}");
+                }
+            }
+        }
     }
 
     #[test]

@@ -89,6 +89,12 @@ pub struct ReconOptions {
     /// dense and paper).
     #[cfg_attr(feature = "clap", arg(long, value_name = "DEGREES"))]
     pub tangent_robust_angle: Option<f32>,
+    /// Compare at most this many of the views that face a surface point with its normal in the
+    /// AoP tangent loss, a systematic sample drawn for each ray (an unbiased estimate of the
+    /// mean over them all; the occlusion tests, a third of a dense step, fall with it); 0
+    /// compares every one; default: the preset's (8 in fast and dense; 0 in paper, NeRSP).
+    #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
+    pub tangent_views: Option<usize>,
     /// Let the specular lobe's AoP turn off the normal (a rough lobe lit from one side is
     /// polarized about its lit half vectors, which lean towards the light that the specular
     /// network puts beside the mirror direction), and take that predicted turn out of each
@@ -148,6 +154,7 @@ impl Default for ReconOptions {
             aop_reliability: None,
             tangent_azimuth_only: None,
             tangent_robust_angle: None,
+            tangent_views: None,
             specular_tilt: None,
             initial_radius: None,
             downscale: 1,
@@ -273,6 +280,9 @@ impl ReconOptions {
         }
         if let Some(angle) = self.tangent_robust_angle {
             config.tangent_robust_angle = angle;
+        }
+        if let Some(n) = self.tangent_views {
+            config.tangent_views = n;
         }
         if let Some(on) = self.specular_tilt {
             config.model.specular_tilt = on;

@@ -62,6 +62,10 @@ pub const FAST_INITIAL_RADIUS: f32 = 0.2;
 /// left out of a step (`docs/benchmarks.md`, a training step).
 pub const MIN_SAMPLE_WEIGHT: f32 = 1e-4;
 
+/// The fast and dense presets' most views that the AoP tangent loss compares with a surface
+/// point ([`crate::geometric::ViewSample`]); a scene of 6 views keeps every one.
+pub const TANGENT_VIEWS: usize = 8;
+
 /// Share of background rays in a batch.
 pub const BACKGROUND_SHARE: f32 = 0.25;
 
@@ -156,6 +160,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         // Stray AoPs on curved surfaces pull less (docs/reconstruction.md); the fast preset
         // only, where it was measured (with the tilted lobe).
         tangent_robust_angle: if preset == Preset::Fast { TANGENT_ROBUST_ANGLE } else { 0.0 },
+        tangent_views: if preset == Preset::Paper { 0 } else { TANGENT_VIEWS },
         diffuse_only: 1000.min(iterations / 10),
         margin: 8,
         background_share: BACKGROUND_SHARE,

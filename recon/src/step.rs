@@ -8,7 +8,7 @@
 
 use crate::config::TrainConfig;
 use crate::data::TrainingSet;
-use crate::geometric::{curved_robust_scale, robust_scale, tangent_loss, tangents};
+use crate::geometric::{curved_robust_scale, robust_scale, tangent_loss, tangents, ViewSample};
 use crate::losses::{curvature, eikonal, l1, mask_bce, PerTerm, Term};
 use crate::model::{GridGradient, Model, STOKES};
 use crate::occupancy::OccupancyGrid;
@@ -43,6 +43,10 @@ pub struct Batch {
     /// the samples left out, so that the regularisers' expected gradient is the one they have
     /// when every sample is rendered.
     pub left_out_draws: Vec<f32>,
+    /// For each ray, where the systematic sample of the views that the geometric loss compares
+    /// with its surface point starts, in `[0, 1)` (empty where every view is compared:
+    /// [`TrainConfig::tangent_views`] is 0 or at least the training set's views).
+    pub tangent_view_draws: Vec<f32>,
 }
 
 /// What a step's compute returns beside the gradient it writes.
@@ -186,8 +190,21 @@ impl Step<'_> {
             let points: Vec<[f32; 3]> = surface.iter().map(|s| s.1).collect();
             let normals: Vec<[f32; 3]> = surface.iter().map(|s| s.2).collect();
             let robust = robust_scale(config.tangent_robust_angle);
-            let found =
-                tangents(set, config.aop_reliability, model, params, level_weight, &points, &normals, robust > 0.0);
+            let draws = &self.batch.tangent_view_draws;
+            let offsets: Vec<f32> =
+                if draws.is_empty() { Vec::new() } else { surface.iter().map(|s| draws[range.start + s.0]).collect() };
+            let sample = (!draws.is_empty()).then_some(ViewSample { views: config.tangent_views, offsets: &offsets });
+            let found = tangents(
+                set,
+                config.aop_reliability,
+                model,
+                params,
+                level_weight,
+                &points,
+                &normals,
+                robust > 0.0,
+                sample,
+            );
             for ((r, _, n), at) in surface.iter().zip(&found) {
                 let robust = curved_robust_scale(robust, at.curvature_share);
                 let (loss, dn) = tangent_loss(*n, &at.views, config.tangent_azimuth_only, robust);

@@ -173,8 +173,21 @@ impl Trainer {
         let sampling = self.config.sampling;
         let draws = if sampling.skips_empty_space() { sampling.regularised_left_out * batch.len() } else { 0 };
         let left_out_draws = (0..draws).map(|_| rng.next_f32()).collect();
-        let batch =
-            Batch { rays: batch, jitter, level_weight, fd_step, warm, use_geometric, occupancy, left_out_draws };
+        let views = self.config.tangent_views;
+        let samples_views = use_geometric && views > 0 && views < set.views.len();
+        let tangent_view_draws =
+            if samples_views { (0..batch.len()).map(|_| rng.next_f32()).collect() } else { Vec::new() };
+        let batch = Batch {
+            rays: batch,
+            jitter,
+            level_weight,
+            fd_step,
+            warm,
+            use_geometric,
+            occupancy,
+            left_out_draws,
+            tangent_view_draws,
+        };
         let StepLosses { losses, samples } =
             self.compute.gradient(&self.model, &self.params, &self.set, &self.config, &batch, &mut self.grad);
         let w = &self.config.weights;

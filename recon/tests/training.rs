@@ -81,6 +81,7 @@ fn random_batch(trainer: &Trainer, rng: &mut Rng, use_geometric: bool, occupancy
         use_geometric,
         occupancy: occupancy.cloned().map(std::sync::Arc::new),
         left_out_draws: Vec::new(),
+        tangent_view_draws: Vec::new(),
     }
 }
 
@@ -170,6 +171,7 @@ fn resume_continues_bit_for_bit() {
     let mut config = small_config(40);
     config.batch_rays = 64;
     config.diffuse_only = 19; // cross the warm-up boundary between stop and resume
+    config.tangent_views = 4; // of the six views: each ray's sample drawn
     assert!(config.sampling.skips_empty_space() && rmvp_recon::occupancy::REFRESH_EVERY == 16);
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     // On one thread here, on two below: the same steps whatever the number of threads.
@@ -354,4 +356,54 @@ fn a_step_writes_its_whole_gradient_over_the_buffer_it_is_given() {
     assert!(fresh.iter().any(|&g| g != 0.0));
     let differ = fresh.iter().zip(&reused).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
     assert_eq!(differ, 0, "{differ} of {} entries differ", params.len());
+}
+
+#[test]
+fn the_tangent_loss_over_a_sample_of_the_views_estimates_its_mean_over_every_view() {
+    use rmvp_recon::geometric::{tangent_loss, tangents, ViewSample};
+    let (config, set) = spot_steps(10);
+    let trainer = Trainer::new(config, set);
+    let level_weight = trainer.level_weight();
+    // Points on the initial sphere, facing the views from several sides.
+    let radius = presets::FAST_INITIAL_RADIUS;
+    let normals: Vec<[f32; 3]> = (0..64)
+        .map(|i| {
+            let (a, z) = (i as f32 * 0.9, (i as f32 * 0.37).sin() * 0.8);
+            let r = (1.0 - z * z).sqrt();
+            [r * a.cos(), z, r * a.sin()]
+        })
+        .collect();
+    let points: Vec<[f32; 3]> = normals.iter().map(|n| n.map(|x| x * radius)).collect();
+    let every = |sample: Option<ViewSample<'_>>| {
+        tangents(&trainer.set, 0.0, &trainer.model, &trainer.params, &level_weight, &points, &normals, false, sample)
+    };
+    let all = every(None);
+    let (views, offsets) = (2, 512);
+    let mut sums = vec![(0f64, [0f64; 3]); points.len()];
+    // The sample is drawn before the occlusion test: where a view that faces a point is
+    // occluded, a sample may keep fewer views (a ratio estimate); the points without one are
+    // compared exactly.
+    let mut whole = vec![true; points.len()];
+    for k in 0..offsets {
+        let u = vec![(k as f32 + 0.5) / offsets as f32; points.len()];
+        for (i, at) in every(Some(ViewSample { views, offsets: &u })).iter().enumerate() {
+            assert!(at.views.len() <= views, "point {i}: {} views", at.views.len());
+            whole[i] &= at.views.len() == all[i].views.len().min(views);
+            let (loss, d) = tangent_loss(normals[i], &at.views, true, 0.0);
+            sums[i].0 += loss as f64 / offsets as f64;
+            (0..3).for_each(|c| sums[i].1[c] += d[c] as f64 / offsets as f64);
+        }
+    }
+    let sampled = (0..points.len()).filter(|&i| whole[i] && all[i].views.len() > views).count();
+    assert!(sampled >= 6, "{sampled} of the points face more than {views} views, none occluded");
+    for (i, at) in all.iter().enumerate().filter(|(i, _)| whole[*i]) {
+        let (loss, d) = tangent_loss(normals[i], &at.views, true, 0.0);
+        let scale = loss.abs().max(1e-4) as f64;
+        assert!((sums[i].0 - loss as f64).abs() < 0.01 * scale, "point {i}: {} vs {loss}", sums[i].0);
+        let (len, off) = (
+            d.iter().map(|x| x * x).sum::<f32>().sqrt() as f64,
+            (0..3).map(|c| (sums[i].1[c] - d[c] as f64).powi(2)).sum::<f64>().sqrt(),
+        );
+        assert!(off < 0.01 * len.max(1e-4), "point {i}: gradient off by {off} of {len}");
+    }
 }
