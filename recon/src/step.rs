@@ -38,10 +38,11 @@ pub struct Batch {
     /// everywhere).
     pub occupancy: Option<Arc<OccupancyGrid>>,
     /// For each ray, [`Sampling::regularised_left_out`](crate::volume::Sampling) numbers in
-    /// `[0, 1)` that pick the samples left out of the step that the regularisers still see
-    /// (empty where every sample is rendered or none is drawn). Each stands for its share of
-    /// the samples left out, so that the regularisers' expected gradient is the one they have
-    /// when every sample is rendered.
+    /// `[0, 1)` that pick, among the samples left out of the step behind the last one the ray
+    /// renders (space it does not see), those that the regularisers still see, where they lie
+    /// at least [`REGULARISED_CLEARANCE`] from the surface (empty where every sample is
+    /// rendered or none is drawn). Each stands for its share of those samples, so that the
+    /// regularisers' expected gradient is the one they have over all of them.
     pub left_out_draws: Vec<f32>,
     /// For each ray, where the systematic sample of the views that the geometric loss compares
     /// with its surface point starts, in `[0, 1)` (empty where every view is compared:
@@ -80,6 +81,11 @@ pub struct CpuStep;
 
 /// Rays per chunk of a batch; chunks run in parallel and are summed in order.
 const CHUNK_RAYS: usize = 32;
+
+/// The least distance from the surface (the SDF's magnitude, unit sphere) at which a sample
+/// drawn from those a step leaves out ([`Batch::left_out_draws`]) is regularised: the
+/// surfaces' neighbourhoods are left to the samples rendered, and sharp edges stay sharp.
+pub const REGULARISED_CLEARANCE: f32 = 0.05;
 
 /// The losses' normalisers: rays, rays inside the masks, samples a step takes when it renders
 /// every sample.
@@ -219,21 +225,22 @@ impl Step<'_> {
         let draws = &self.batch.left_out_draws;
         let per_ray = config.sampling.regularised_left_out;
         if !draws.is_empty() && per_ray > 0 {
-            // Each ray's draws pick among its samples left out; each stands for its share of
-            // the samples the ray would take rendering every one.
-            let every = config.sampling.coarse + config.sampling.fine;
+            // Each ray's draws pick among its samples left out behind the last it renders, in
+            // space the ray does not see; each stands for its share of them.
             let draws = &draws[per_ray * range.start..per_ray * range.end];
             let (mut points, mut shares) = (Vec::new(), Vec::new());
             for ((ray, (rendered, left_out)), u) in
                 rays.iter().zip(depths.iter().zip(&samples.left_out)).zip(draws.chunks_exact(per_ray))
             {
-                if left_out.is_empty() {
+                let Some(&last) = rendered.last() else { continue };
+                let unseen: Vec<f32> = left_out.iter().copied().filter(|&depth| depth > last).collect();
+                if unseen.is_empty() {
                     continue;
                 }
-                let share = every.saturating_sub(rendered.len()) as f32 / per_ray as f32;
+                let share = unseen.len() as f32 / per_ray as f32;
                 for &u in u {
-                    let pick = ((u * left_out.len() as f32) as usize).min(left_out.len() - 1);
-                    points.extend(ray.at(left_out[pick]));
+                    let pick = ((u * unseen.len() as f32) as usize).min(unseen.len() - 1);
+                    points.extend(ray.at(unseen[pick]));
                     shares.push(share);
                 }
             }
@@ -244,12 +251,14 @@ impl Step<'_> {
         (grad, grid, sums)
     }
 
-    /// The Eikonal and curvature terms at `points` (n x 3), each point weighing as many samples
-    /// as its `shares`; adds the networks' gradient into `grad` and returns the hash grid's.
+    /// The Eikonal and curvature terms at those of `points` (n x 3) that lie at least
+    /// [`REGULARISED_CLEARANCE`] from the surface, each weighing as many samples as its
+    /// `shares`; adds the networks' gradient into `grad` and returns the hash grid's.
     fn regularise(&self, points: Vec<f32>, shares: &[f32], sums: &mut ChunkSums, grad: &mut [f32]) -> GridGradient {
         let batch = self.batch;
         let field = FieldSamples::evaluate(self.model, self.params, &batch.level_weight, points, batch.fd_step);
-        let (d_gradients, d_laplacians) = self.regulariser_gradients(&field, |i| shares[i], sums);
+        let share = |i: usize| if field.sdf[i].abs() < REGULARISED_CLEARANCE { 0.0 } else { shares[i] };
+        let (d_gradients, d_laplacians) = self.regulariser_gradients(&field, share, sums);
         let zeros = |n: usize| vec![0f32; n];
         let d = FieldGrad {
             sdf: &zeros(field.sdf.len()),

@@ -293,8 +293,11 @@ fn without_the_photometric_cue_the_tangent_loss_takes_each_aop_as_measured() {
 }
 
 #[test]
-fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_rendered() {
-    use rmvp_recon::losses::Term;
+fn the_regularisers_see_the_unseen_samples_a_step_leaves_out_as_if_each_were_rendered() {
+    use rmvp_recon::losses::{curvature, eikonal, Term};
+    use rmvp_recon::samples::FieldSamples;
+    use rmvp_recon::step::REGULARISED_CLEARANCE;
+    use rmvp_recon::volume::weighted_samples;
     let (mut config, set) = spot_steps(200);
     config.sampling.regularised_left_out = 2;
     let mut trainer = Trainer::new(config.clone(), set.clone());
@@ -304,17 +307,40 @@ fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_re
     // As sharp as after a few hundred iterations, so that most samples are left out.
     let variance = trainer.model.variance;
     trainer.params[variance] = 200f32.ln() / rmvp_recon::model::VARIANCE_SCALE;
-    // Without the occupancy grid both steps take the same depths on every ray.
+    // Without the occupancy grid the steps and the reference below take the same depths.
     let mut rng = Rng::for_pixel(7 + rmvp_testkit::test_seed(), 0, 0);
     let mut batch = random_batch(&trainer, &mut rng, false, None);
     let (model, params) = (&trainer.model, &trainer.params);
     let regularisers = |g: &rmvp_recon::step::StepLosses| [g.losses[Term::Eikonal], g.losses[Term::Curvature]];
-    let mut every_config = config.clone();
-    every_config.sampling.min_weight = 0.0;
     let mut grad = vec![0f32; params.len()];
-    let every = CpuStep.gradient(model, params, &set, &every_config, &batch, &mut grad);
-    let every_samples = batch.rays.len() * (config.sampling.coarse + config.sampling.fine);
-    assert_eq!(every.samples, every_samples);
+    // The reference: the rendered samples' terms (a step without draws) and, over every
+    // sample left out behind the last one its ray renders and away from the surface, each
+    // sample's own, all normalised by the samples a step takes rendering every one.
+    let rendered_only = CpuStep.gradient(model, params, &set, &config, &batch, &mut grad);
+    let rays: Vec<_> = batch.rays.iter().map(|&(v, p)| set.ray(v, p)).collect();
+    let samples = weighted_samples(model, params, &batch.level_weight, &rays, config.sampling, &batch.jitter, None);
+    let mut unseen = Vec::new();
+    for (ray, (rendered, left_out)) in rays.iter().zip(samples.rendered.iter().zip(&samples.left_out)) {
+        if let Some(&last) = rendered.last() {
+            left_out.iter().filter(|&&d| d > last).for_each(|&d| unseen.extend(ray.at(d)));
+        }
+    }
+    let field = FieldSamples::evaluate(model, params, &batch.level_weight, unseen, batch.fd_step);
+    let every_samples = (batch.rays.len() * (config.sampling.coarse + config.sampling.fine)) as f32;
+    let mut truth = regularisers(&rendered_only);
+    let mut regularised = 0;
+    for (i, g) in field.gradients.chunks_exact(3).enumerate() {
+        if field.sdf[i].abs() >= REGULARISED_CLEARANCE {
+            truth[0] += eikonal([g[0], g[1], g[2]]).0 as f64 / every_samples as f64;
+            truth[1] += curvature(field.laplacians[i]).0 as f64 / every_samples as f64;
+            regularised += 1;
+        }
+    }
+    assert!(
+        regularised > field.sdf.len() / 4,
+        "{regularised} of {} unseen samples away from the surface",
+        field.sdf.len()
+    );
     let draws = 200;
     let mut estimates = Vec::new();
     let mut taken = 0;
@@ -324,17 +350,20 @@ fn the_regularisers_see_the_samples_a_step_leaves_out_as_if_every_sample_were_re
         taken = weighted.samples;
         estimates.push(regularisers(&weighted));
     }
-    assert!(taken < every_samples / 3, "{taken} of {every_samples} samples rendered");
+    assert!((taken as f32) < every_samples / 3.0, "{taken} of {every_samples} samples rendered");
     for (k, name) in ["Eikonal", "curvature"].into_iter().enumerate() {
         let values: Vec<f64> = estimates.iter().map(|e| e[k]).collect();
         let mean = values.iter().sum::<f64>() / draws as f64;
         let spread = (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (draws - 1) as f64).sqrt();
         let standard_error = spread / (draws as f64).sqrt();
-        let truth = regularisers(&every)[k];
-        println!("{name}: every sample {truth:.5}, left-out draws {mean:.5} +- {standard_error:.5} (one step's spread {spread:.5})");
-        // The estimate is unbiased, and a step's own spread is a fraction of the value.
-        assert!((mean - truth).abs() < 4.0 * standard_error, "{name}: {mean} against {truth}");
-        assert!(spread < 0.5 * truth, "{name}: spread {spread} of {truth}");
+        let drawn = mean - regularisers(&rendered_only)[k];
+        let unseen_truth = truth[k] - regularisers(&rendered_only)[k];
+        println!("{name}: reference {:.5} (unseen {unseen_truth:.5}), with draws {mean:.5} +- {standard_error:.5} (one step's spread {spread:.5})", truth[k]);
+        // The estimate is unbiased, the unseen samples' part is a real share of the value, and
+        // a step's own spread is a fraction of it.
+        assert!((mean - truth[k]).abs() < 4.0 * standard_error, "{name}: {mean} against {}", truth[k]);
+        assert!(drawn > 0.1 * truth[k] && unseen_truth > 0.1 * truth[k], "{name}: {drawn} of {}", truth[k]);
+        assert!(spread < 0.5 * truth[k], "{name}: spread {spread} of {}", truth[k]);
     }
 }
 
