@@ -139,7 +139,6 @@ const VISIBILITY: TraceLimits =
     TraceLimits { step_scale: 1.0, max_step: f32::INFINITY, max_steps: 48, relaxation: 1.6 };
 
 /// One view of one surface point, for the geometric cue.
-#[derive(Clone, Copy)]
 struct Query {
     /// The point's index.
     point: usize,
@@ -183,10 +182,12 @@ pub fn tangents(
     curvature: bool,
     sample: Option<ViewSample>,
 ) -> Vec<PointTangents> {
-    let mut queries = Vec::new();
+    let (mut queries, mut facing) = (Vec::new(), Vec::new());
     for (pi, (&x, &n)) in points.iter().zip(normals).enumerate() {
         let world = set.frame.point_to_world(x);
-        let first = queries.len();
+        // The views that face the point and see it inside their masks: (view, pixel, towards
+        // the camera).
+        facing.clear();
         for (vi, view) in set.views.iter().enumerate() {
             let to_camera = normalize([0, 1, 2].map(|k| view.center[k] - x[k]));
             if dot(to_camera, n) <= 0.0 {
@@ -198,9 +199,19 @@ pub fn tangents(
                 continue;
             }
             let k = pixel.y as usize * view.width() + pixel.x as usize;
-            if !view.mask[k] {
-                continue;
+            if view.mask[k] {
+                facing.push((vi, k, to_camera));
             }
+        }
+        let sampled = match &sample {
+            Some(sample) if sample.views > 0 && facing.len() > sample.views => {
+                Some(systematic_sample(facing.len(), sample.views, sample.offsets[pi]))
+            }
+            _ => None,
+        };
+        let every = sampled.is_none().then_some(0..facing.len());
+        for (vi, k, to_camera) in sampled.into_iter().flatten().chain(every.into_iter().flatten()).map(|j| facing[j]) {
+            let view = &set.views[vi];
             let towards = (world - view.camera.center()).normalize();
             let (fx, fy) = view.camera.stokes_frame(&towards);
             let (fx, fy) = (set.frame.dir_from_world(&fx), set.frame.dir_from_world(&fy));
@@ -208,17 +219,6 @@ pub fn tangents(
             // A point inside the unit sphere always leaves it; outside, nothing can occlude it.
             let exit = unit_sphere_span(x, to_camera).map_or(0.0, |(_, far)| far);
             queries.push(Query { point: pi, view: vi, pixel: k, origin: x, dir: to_camera, exit, towards, frame });
-        }
-        if let Some(sample) = &sample {
-            let facing = queries.len() - first;
-            if sample.views > 0 && facing > sample.views {
-                let kept = systematic_sample(facing, sample.views, sample.offsets[pi]);
-                for (j, k) in kept.enumerate() {
-                    // k >= j and rising: the query read has not been overwritten.
-                    queries[first + j] = queries[first + k];
-                }
-                queries.truncate(first + sample.views);
-            }
         }
     }
     // Batched sphere tracing towards each camera.

@@ -134,6 +134,17 @@ impl HashGrid {
         out
     }
 
+    /// The corners at `level` of up to [`BLOCK`] `points` (3 each) into `block`, every entry
+    /// asked of memory (in the level's `table`) before any is read: the entries of many points
+    /// are on their way at once.
+    #[inline(always)]
+    fn block_corners(&self, level: usize, points: &[f32], table: &[f32], block: &mut [Corners; BLOCK]) {
+        for (p, c) in points.chunks_exact(3).zip(block.iter_mut()) {
+            *c = self.corners(level, [p[0], p[1], p[2]]);
+            c.index.iter().for_each(|&at| prefetch(table, at));
+        }
+    }
+
     /// Encode `points` (n x 3) into `out` (n x outputs); level `l` is scaled by `level_weight[l]`.
     /// Level by level, so that one level's table stays in cache.
     pub fn encode(&self, params: &[f32], points: &[f32], level_weight: &[f32], out: &mut [f32]) {
@@ -146,12 +157,7 @@ impl HashGrid {
                     out.chunks_exact_mut(width).for_each(|o| o[level * FEATURES..(level + 1) * FEATURES].fill(0.0));
                     continue;
                 }
-                // A block's corners first, their entries asked for, then read: the entries of
-                // many points are on their way from memory at once.
-                for (p, c) in points.chunks_exact(3).zip(block.iter_mut()) {
-                    *c = self.corners(level, [p[0], p[1], p[2]]);
-                    c.index.iter().for_each(|&at| prefetch(table, at));
-                }
+                self.block_corners(level, points, table, &mut block);
                 for (o, corners) in out.chunks_exact_mut(width).zip(&block) {
                     let mut f = [0f32; FEATURES];
                     for k in 0..8 {
@@ -188,10 +194,7 @@ impl HashGrid {
             let mut block = [Corners { index: [0; 8], weight: [0.0; 8] }; BLOCK];
             for (points, d_out) in batches {
                 for (points, d_out) in points.chunks(3 * BLOCK).zip(d_out.chunks(width * BLOCK)) {
-                    for (p, c) in points.chunks_exact(3).zip(block.iter_mut()) {
-                        *c = self.corners(level, [p[0], p[1], p[2]]);
-                        c.index.iter().for_each(|&at| prefetch(table, at));
-                    }
+                    self.block_corners(level, points, table, &mut block);
                     for (d, corners) in d_out.chunks_exact(width).zip(&block) {
                         let d = &d[level * FEATURES..(level + 1) * FEATURES];
                         for k in 0..8 {
