@@ -92,7 +92,7 @@ pub struct ReconOptions {
     pub tangent_robust_angle: Option<f32>,
     /// Compare at most this many of the views that face a surface point with its normal in the
     /// AoP tangent loss, a systematic sample drawn for each ray (an unbiased estimate of the
-    /// mean over them all; the occlusion tests, a third of a dense step, fall with it); 0
+    /// mean over them all; the occlusion tests, a quarter of a dense step, fall with it); 0
     /// compares every one; default: the preset's (8 in fast and dense; 0 in paper, NeRSP).
     #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
     pub tangent_views: Option<usize>,

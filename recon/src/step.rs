@@ -84,7 +84,7 @@ const CHUNK_RAYS: usize = 32;
 
 /// The least distance from the surface (the SDF's magnitude, unit sphere) at which a sample
 /// drawn from those a step leaves out ([`Batch::left_out_draws`]) is regularised: the
-/// surfaces' neighbourhoods are left to the samples rendered, and sharp edges stay sharp.
+/// surfaces' neighbourhoods are left to the samples rendered.
 pub const REGULARISED_CLEARANCE: f32 = 0.05;
 
 /// The losses' normalisers: rays, rays inside the masks, samples a step takes when it renders
