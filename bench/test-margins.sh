@@ -19,7 +19,7 @@ echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -
 # package, test binary, test name filter, the pattern of the lines that carry its figures
 runs=(
   "rmvp-recon training analytic_sphere_converges sphere:|outputs:|surface shading"
-  "rmvp-recon training the_regularisers_see Eikonal:|curvature:"
+  "rmvp-recon training the_curvature_term_sees curvature:"
   "rmvp-recon fixture the_fast_preset seed [0-9]+:"
   "rmvp-align icp known_similarity|far_starts|cropped_noisy alignment error"
   "rmvp-calib board rendered_boards corner error|deviations"

@@ -49,11 +49,11 @@ pub struct ReconOptions {
     pub min_sample_weight: Option<f32>,
     /// Of the samples a step leaves out (`--min-sample-weight`) behind the last one a ray
     /// renders, in space that ray does not see, this many per ray, drawn at random, still carry
-    /// the Eikonal and curvature terms for their share of them, where they lie 0.05 or more
-    /// from the surface: space no view sees stays a distance field, and a turntable capture
-    /// grows no blob under its object (our ring seen only from above: Chamfer 0.0156 ->
-    /// 0.0049 with 2), at a cost on some sharp objects (the Mitsuba fandisk 7.13 -> 7.45
-    /// degrees, the rocker arm 4.94 -> 4.57); default 0: the rendered samples alone.
+    /// the curvature term for their share of them, where they lie outside the surface by 0.05
+    /// or more: space no view sees past takes the field of the space around it, and a turntable
+    /// capture grows no blob under its object (our ring seen only from above: Chamfer 0.0156
+    /// with 0, 0.0045 with 2); 0: the rendered samples alone (default: the preset's; fast and
+    /// dense 2).
     #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
     pub regularised_left_out: Option<usize>,
     /// Dilation of the masks that object rays are drawn from, pixels (default: the preset's, 8).

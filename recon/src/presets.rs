@@ -62,6 +62,12 @@ pub const FAST_INITIAL_RADIUS: f32 = 0.2;
 /// left out of a step (`docs/benchmarks.md`, a training step).
 pub const MIN_SAMPLE_WEIGHT: f32 = 1e-4;
 
+/// The fast and dense presets' samples a ray draws among those it leaves out behind the last
+/// it renders, where the curvature term still sees them ([`crate::step::Batch::left_out_draws`]):
+/// space that no view sees past takes the field of the space around it, so that a turntable
+/// capture grows no blob under its object (`docs/reconstruction.md`).
+pub const REGULARISED_LEFT_OUT: usize = 2;
+
 /// The fast and dense presets' most views that the AoP tangent loss compares with a surface
 /// point ([`crate::geometric::ViewSample`]); a scene of 6 views keeps every one.
 pub const TANGENT_VIEWS: usize = 8;
@@ -128,7 +134,13 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         ),
         Preset::Fast | Preset::Dense => (
             if preset == Preset::Dense { 512 } else { 256 },
-            Sampling { coarse: 32, fine: 32, steps: 4, min_weight: MIN_SAMPLE_WEIGHT, regularised_left_out: 0 },
+            Sampling {
+                coarse: 32,
+                fine: 32,
+                steps: 4,
+                min_weight: MIN_SAMPLE_WEIGHT,
+                regularised_left_out: REGULARISED_LEFT_OUT,
+            },
             AdamConfig {
                 lr_network: 2e-3,
                 lr_grid: 1e-2,

@@ -39,10 +39,10 @@ pub struct Batch {
     pub occupancy: Option<Arc<OccupancyGrid>>,
     /// For each ray, [`Sampling::regularised_left_out`](crate::volume::Sampling) numbers in
     /// `[0, 1)` that pick, among the samples left out of the step behind the last one the ray
-    /// renders (space it does not see), those that the regularisers still see, where they lie
-    /// at least [`REGULARISED_CLEARANCE`] from the surface (empty where every sample is
-    /// rendered or none is drawn). Each stands for its share of those samples, so that the
-    /// regularisers' expected gradient is the one they have over all of them.
+    /// renders (space it does not see), those that the curvature term still sees, where they
+    /// lie outside the surface by at least [`REGULARISED_CLEARANCE`] (empty where every sample
+    /// is rendered or none is drawn). Each stands for its share of those samples, so that the
+    /// term's expected gradient is the one it has over all of them.
     pub left_out_draws: Vec<f32>,
     /// For each ray, where the systematic sample of the views that the geometric loss compares
     /// with its surface point starts, in `[0, 1)` (empty where every view is compared:
@@ -82,9 +82,9 @@ pub struct CpuStep;
 /// Rays per chunk of a batch; chunks run in parallel and are summed in order.
 const CHUNK_RAYS: usize = 32;
 
-/// The least distance from the surface (the SDF's magnitude, unit sphere) at which a sample
-/// drawn from those a step leaves out ([`Batch::left_out_draws`]) is regularised: the
-/// surfaces' neighbourhoods are left to the samples rendered.
+/// The least SDF (unit sphere) at which a sample drawn from those a step leaves out
+/// ([`Batch::left_out_draws`]) carries the curvature term: the surfaces' neighbourhoods and the
+/// objects' insides are left to the samples rendered.
 pub const REGULARISED_CLEARANCE: f32 = 0.05;
 
 /// The losses' normalisers: rays, rays inside the masks, samples a step takes when it renders
@@ -219,14 +219,17 @@ impl Step<'_> {
             }
         }
         // Eikonal and curvature on every sample's finite differences, each sample once.
-        let (d_gradients, d_laplacians) = self.regulariser_gradients(&fwd.field, |_| 1.0, &mut sums);
+        let d_gradients = self.eikonal_gradients(&fwd.field, &mut sums);
+        let d_laplacians = self.curvature_gradients(&fwd.field, |_| 1.0, &mut sums);
         let mut grad = vec![0f32; model.network_params()];
         let mut grid = fwd.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
         let draws = &self.batch.left_out_draws;
         let per_ray = config.sampling.regularised_left_out;
         if !draws.is_empty() && per_ray > 0 {
             // Each ray's draws pick among its samples left out behind the last it renders, in
-            // space the ray does not see; each stands for its share of them.
+            // space the ray does not see; each stands for its share of them. The curvature term
+            // there carries the field of the space the views see past into the pockets no view
+            // sees (the Eikonal term and the objects' insides do not, and cost sharp edges).
             let draws = &draws[per_ray * range.start..per_ray * range.end];
             let (mut points, mut shares) = (Vec::new(), Vec::new());
             for ((ray, (rendered, left_out)), u) in
@@ -245,51 +248,58 @@ impl Step<'_> {
                 }
             }
             if !points.is_empty() {
-                grid.extend(self.regularise(points, &shares, &mut sums, &mut grad));
+                grid.extend(self.smooth_unseen(points, &shares, &mut sums, &mut grad));
             }
         }
         (grad, grid, sums)
     }
 
-    /// The Eikonal and curvature terms at those of `points` (n x 3) that lie at least
-    /// [`REGULARISED_CLEARANCE`] from the surface, each weighing as many samples as its
-    /// `shares`; adds the networks' gradient into `grad` and returns the hash grid's.
-    fn regularise(&self, points: Vec<f32>, shares: &[f32], sums: &mut ChunkSums, grad: &mut [f32]) -> GridGradient {
+    /// The curvature term at those of `points` (n x 3) that lie outside the surface by at
+    /// least [`REGULARISED_CLEARANCE`], each weighing as many samples as its `shares`; adds the
+    /// networks' gradient into `grad` and returns the hash grid's.
+    fn smooth_unseen(&self, points: Vec<f32>, shares: &[f32], sums: &mut ChunkSums, grad: &mut [f32]) -> GridGradient {
         let batch = self.batch;
         let field = FieldSamples::evaluate(self.model, self.params, &batch.level_weight, points, batch.fd_step);
-        let share = |i: usize| if field.sdf[i].abs() < REGULARISED_CLEARANCE { 0.0 } else { shares[i] };
-        let (d_gradients, d_laplacians) = self.regulariser_gradients(&field, share, sums);
+        let share = |i: usize| if field.sdf[i] < REGULARISED_CLEARANCE { 0.0 } else { shares[i] };
+        let d_laplacians = self.curvature_gradients(&field, share, sums);
         let zeros = |n: usize| vec![0f32; n];
         let d = FieldGrad {
             sdf: &zeros(field.sdf.len()),
             normals: &zeros(field.normals.len()),
             features: &zeros(field.features.len()),
-            gradients: &d_gradients,
+            gradients: &zeros(field.gradients.len()),
             laplacians: &d_laplacians,
         };
         field.backward(self.model, self.params, &d, grad)
     }
 
-    /// The Eikonal term on `field`'s finite-difference gradients and the curvature term on its
-    /// Laplacians, point `i` weighing `share(i)` samples (of the step's every-sample count):
-    /// their losses added to `sums`, and their gradients with respect to the gradients (n x 3)
-    /// and the Laplacians (n).
-    fn regulariser_gradients(
+    /// The Eikonal term on `field`'s finite-difference gradients, each point weighing one
+    /// sample (of the step's every-sample count): its loss added to `sums`, and its gradient
+    /// with respect to the gradients (n x 3).
+    fn eikonal_gradients(&self, field: &FieldSamples, sums: &mut ChunkSums) -> Vec<f32> {
+        let (w, samples) = (&self.config.weights, self.norm.samples);
+        let mut d_gradients = vec![0f32; field.gradients.len()];
+        for (g, d) in field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)) {
+            let (loss, dg) = eikonal([g[0], g[1], g[2]]);
+            sums.losses[Term::Eikonal] += loss as f64 / samples as f64;
+            for k in 0..3 {
+                d[k] = w[Term::Eikonal] * dg[k] / samples;
+            }
+        }
+        d_gradients
+    }
+
+    /// The curvature term on `field`'s Laplacians, point `i` weighing `share(i)` samples (of
+    /// the step's every-sample count): its loss added to `sums`, and its gradient with respect
+    /// to the Laplacians (n).
+    fn curvature_gradients(
         &self,
         field: &FieldSamples,
         share: impl Fn(usize) -> f32,
         sums: &mut ChunkSums,
-    ) -> (Vec<f32>, Vec<f32>) {
+    ) -> Vec<f32> {
         let (w, samples) = (&self.config.weights, self.norm.samples);
-        let mut d_gradients = vec![0f32; field.gradients.len()];
-        for (i, (g, d)) in field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)).enumerate() {
-            let (loss, dg) = eikonal([g[0], g[1], g[2]]);
-            sums.losses[Term::Eikonal] += (loss * share(i)) as f64 / samples as f64;
-            for k in 0..3 {
-                d[k] = w[Term::Eikonal] * dg[k] * share(i) / samples;
-            }
-        }
-        let d_laplacians = field
+        field
             .laplacians
             .iter()
             .enumerate()
@@ -298,7 +308,6 @@ impl Step<'_> {
                 sums.losses[Term::Curvature] += (loss * share(i)) as f64 / samples as f64;
                 w[Term::Curvature] * d * share(i) / samples
             })
-            .collect();
-        (d_gradients, d_laplacians)
+            .collect()
     }
 }

@@ -25,8 +25,8 @@ pub struct Sampling {
     #[serde(default)]
     pub min_weight: f32,
     /// Of the samples a step leaves out behind the last one a ray renders (space the ray does
-    /// not see), this many per ray, drawn at random, still carry the Eikonal and curvature
-    /// terms where they lie away from the surface, each for its share of them
+    /// not see), this many per ray, drawn at random, still carry the curvature term where
+    /// they lie outside the surface, each for its share of them
     /// ([`crate::step::Batch::left_out_draws`]); 0: none.
     #[serde(default)]
     pub regularised_left_out: usize,
