@@ -52,8 +52,8 @@ pub struct ReconOptions {
     /// the curvature term for their share of them, where they lie outside the surface by 0.05
     /// or more: space no view sees past takes the field of the space around it, and a turntable
     /// capture grows no blob under its object (our ring seen only from above: Chamfer 0.0156
-    /// with 0, 0.0045 with 2); 0: the rendered samples alone (default: the preset's; fast and
-    /// dense 2).
+    /// with 0, 0.0045 with 2); 0: the rendered samples alone (default: the preset's; fast 2,
+    /// dense and paper 0).
     #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
     pub regularised_left_out: Option<usize>,
     /// Dilation of the masks that object rays are drawn from, pixels (default: the preset's, 8).
