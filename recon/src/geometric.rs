@@ -182,7 +182,7 @@ pub fn tangents(
     curvature: bool,
     sample: Option<ViewSample>,
 ) -> Vec<PointTangents> {
-    let (mut queries, mut facing) = (Vec::new(), Vec::new());
+    let (mut queries, mut facing, mut kept) = (Vec::new(), Vec::new(), Vec::new());
     for (pi, (&x, &n)) in points.iter().zip(normals).enumerate() {
         let world = set.frame.point_to_world(x);
         // The views that face the point and see it inside their masks: (view, pixel, towards
@@ -203,14 +203,15 @@ pub fn tangents(
                 facing.push((vi, k, to_camera));
             }
         }
-        let sampled = match &sample {
+        // Those compared: a systematic sample of them, or every one.
+        kept.clear();
+        match &sample {
             Some(sample) if sample.views > 0 && facing.len() > sample.views => {
-                Some(systematic_sample(facing.len(), sample.views, sample.offsets[pi]))
+                kept.extend(systematic_sample(facing.len(), sample.views, sample.offsets[pi]))
             }
-            _ => None,
-        };
-        let every = sampled.is_none().then_some(0..facing.len());
-        for (vi, k, to_camera) in sampled.into_iter().flatten().chain(every.into_iter().flatten()).map(|j| facing[j]) {
+            _ => kept.extend(0..facing.len()),
+        }
+        for &(vi, k, to_camera) in kept.iter().map(|&j| &facing[j]) {
             let view = &set.views[vi];
             let towards = (world - view.camera.center()).normalize();
             let (fx, fy) = view.camera.stokes_frame(&towards);
