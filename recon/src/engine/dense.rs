@@ -1,6 +1,8 @@
-//! Multilayer perceptrons on row-major batches (`n x width`), forward and backward by SGEMM
-//! (`matrixmultiply`), with an optional skip connection and NeuS's geometric initialisation.
+//! Multilayer perceptrons on row-major batches (`n x width`), forward and backward by the panel
+//! kernels ([`super::panel`]; `matrixmultiply`'s SGEMM on processors without AVX2), with an
+//! optional skip connection and NeuS's geometric initialisation.
 
+use super::panel::{self, padded, Isa, Panels, Strided};
 use super::params::{Group, ParamLayout};
 use multiversion::multiversion;
 use rmvp_dataset::rng::Rng;
@@ -16,10 +18,9 @@ pub enum Activation {
 
 impl Activation {
     /// `out = f(x)` elementwise.
-    fn apply(self, x: &[f32], out: &mut Vec<f32>) {
-        out.clear();
+    fn apply(self, x: &[f32], out: &mut [f32]) {
         match self {
-            Activation::Relu => out.extend(x.iter().map(|&v| v.max(0.0))),
+            Activation::Relu => out.iter_mut().zip(x).for_each(|(o, &v)| *o = v.max(0.0)),
             Activation::Softplus(beta) => softplus(beta, x, out),
         }
     }
@@ -41,9 +42,7 @@ impl Activation {
 
 /// `out = softplus(x)`: `max(x, 0) + log1p(exp(-|beta x|)) / beta`, branch-free so it vectorises.
 #[multiversion(targets("x86_64+avx512f", "x86_64+avx2"))]
-fn softplus(beta: f32, x: &[f32], out: &mut Vec<f32>) {
-    out.clear();
-    out.resize(x.len(), 0.0);
+fn softplus(beta: f32, x: &[f32], out: &mut [f32]) {
     for (o, &v) in out.iter_mut().zip(x) {
         *o = v.max(0.0) + log1p_unit(exp_neg((beta * v).abs())) / beta;
     }
@@ -104,9 +103,10 @@ pub struct Mlp {
     /// Layer index whose input is `[h, x] / sqrt(2)` (NeuS's skip connection).
     skip: Option<usize>,
     inputs: usize,
+    products: Products,
 }
 
-/// What the forward pass keeps for the backward pass.
+/// What the forward pass keeps for the backward pass, rows padded to whole panels.
 #[derive(Default)]
 pub struct MlpCache {
     rows: usize,
@@ -152,7 +152,7 @@ impl Mlp {
             layers.push(Dense { inputs: width, outputs: out, weight, bias });
             width = if skip == Some(l + 1) { out + inputs } else { out };
         }
-        Self { layers, activation, skip, inputs }
+        Self { layers, activation, skip, inputs, products: Products::best() }
     }
 
     /// Number of inputs.
@@ -231,47 +231,73 @@ impl Mlp {
         self.evaluate(params, input, rows, None)
     }
 
-    /// Forward, keeping what backward needs in `cache` when there is one.
-    pub fn evaluate(&self, params: &[f32], input: &[f32], rows: usize, mut cache: Option<&mut MlpCache>) -> Vec<f32> {
+    /// Forward, keeping what backward needs in `cache` when there is one (otherwise in one
+    /// block's worth of scratch).
+    pub fn evaluate(&self, params: &[f32], input: &[f32], rows: usize, cache: Option<&mut MlpCache>) -> Vec<f32> {
         debug_assert_eq!(input.len(), rows * self.inputs);
-        let hidden = self.layers.len() - 1;
-        if let Some(c) = cache.as_deref_mut() {
-            c.rows = rows;
-            c.layer_inputs = self.layers.iter().map(|l| Vec::with_capacity(rows * l.inputs)).collect();
-            c.pre = self.layers[..hidden].iter().map(|l| Vec::with_capacity(rows * l.outputs)).collect();
+        let mut scratch = MlpCache::default();
+        let keep = cache.is_some();
+        let cache = cache.unwrap_or(&mut scratch);
+        let kept_rows = if keep { rows } else { ROW_BLOCK.min(rows) };
+        let last = self.layers.len() - 1;
+        cache.rows = rows;
+        cache.layer_inputs.resize_with(self.layers.len(), Vec::new);
+        cache.pre.resize_with(last, Vec::new);
+        for (l, layer) in self.layers.iter().enumerate() {
+            refill(&mut cache.layer_inputs[l], kept_rows * padded(layer.inputs));
+            if l < last {
+                refill(&mut cache.pre[l], kept_rows * padded(layer.outputs));
+            }
         }
+        let weights = self.products.forward_weights(&self.layers, params);
         let mut result = Vec::with_capacity(rows * self.outputs());
-        let (mut h, mut out) = (Vec::new(), Vec::new());
+        let mut output_block = vec![0f32; ROW_BLOCK.min(rows) * padded(self.outputs())];
+        let mut activated = Vec::new();
         for first in (0..rows).step_by(ROW_BLOCK) {
             let n = ROW_BLOCK.min(rows - first);
+            let at = if keep { first } else { 0 };
             let block_input = &input[first * self.inputs..(first + n) * self.inputs];
-            h.clear();
-            h.extend_from_slice(block_input);
+            let stride = padded(self.inputs);
+            let x0 = &mut cache.layer_inputs[0][at * stride..(at + n) * stride];
+            for (row, from) in x0.chunks_exact_mut(stride).zip(block_input.chunks_exact(self.inputs)) {
+                row[..self.inputs].copy_from_slice(from);
+            }
             for (l, layer) in self.layers.iter().enumerate() {
-                if self.skip == Some(l) {
-                    h = concat_skip(&h, block_input, n, layer.inputs - self.inputs, self.inputs);
-                }
-                let bias = &params[layer.bias..layer.bias + layer.outputs];
-                out.clear();
-                (0..n).for_each(|_| out.extend_from_slice(bias));
-                gemm(
-                    n,
-                    layer.inputs,
-                    layer.outputs,
-                    (&h, layer.inputs as isize, 1),
-                    (&params[layer.weight..], 1, layer.inputs as isize),
-                    1.0,
-                    &mut out,
-                );
-                if let Some(c) = cache.as_deref_mut() {
-                    c.layer_inputs[l].extend_from_slice(&h);
-                }
-                if l == hidden {
-                    result.extend_from_slice(&out);
+                let (width_in, width_out) = (padded(layer.inputs), padded(layer.outputs));
+                let (through, later) = cache.layer_inputs.split_at_mut(l + 1);
+                let x = &through[l][at * width_in..(at + n) * width_in];
+                let y = if l == last {
+                    &mut output_block[..n * width_out]
                 } else {
-                    self.activation.apply(&out, &mut h);
-                    if let Some(c) = cache.as_deref_mut() {
-                        c.pre[l].extend_from_slice(&out);
+                    &mut cache.pre[l][at * width_out..(at + n) * width_out]
+                };
+                let bias = &params[layer.bias..layer.bias + layer.outputs];
+                for row in y.chunks_exact_mut(width_out) {
+                    row[..layer.outputs].copy_from_slice(bias);
+                    row[layer.outputs..].fill(0.0);
+                }
+                self.products.forward(layer, params, weights.as_ref().map(|w| w[l].as_slice()), n, x, y);
+                if l == last {
+                    for row in y.chunks_exact(width_out) {
+                        result.extend_from_slice(&row[..layer.outputs]);
+                    }
+                    continue;
+                }
+                let next_width = padded(self.layers[l + 1].inputs);
+                let next = &mut later[0][at * next_width..(at + n) * next_width];
+                if self.skip == Some(l + 1) {
+                    activated.resize(y.len(), 0.0);
+                    self.activation.apply(y, &mut activated);
+                    let rows = next.chunks_exact_mut(next_width).zip(activated.chunks_exact(width_out));
+                    for ((to, h), x) in rows.zip(block_input.chunks_exact(self.inputs)) {
+                        let (to_h, to_x) = to.split_at_mut(layer.outputs);
+                        to_h.iter_mut().zip(h).for_each(|(t, v)| *t = v * SKIP_SCALE);
+                        to_x.iter_mut().zip(x).for_each(|(t, v)| *t = v * SKIP_SCALE);
+                    }
+                } else {
+                    self.activation.apply(y, next);
+                    if layer.outputs < width_out {
+                        next.chunks_exact_mut(width_out).for_each(|row| row[layer.outputs..].fill(0.0));
                     }
                 }
             }
@@ -284,94 +310,241 @@ impl Mlp {
     pub fn backward(&self, params: &[f32], cache: &MlpCache, d_output: &[f32], grad: &mut [f32]) -> Vec<f32> {
         let rows = cache.rows;
         let outputs = self.outputs();
+        let last = self.layers.len() - 1;
+        let weights = self.products.backward_weights(&self.layers, params);
+        let mut weight_sums = self.products.weight_gradient_sums(&self.layers);
         let mut d_input = Vec::with_capacity(rows * self.inputs);
+        let (mut d, mut dx) = (Vec::new(), Vec::new());
         for first in (0..rows).step_by(ROW_BLOCK) {
             let n = ROW_BLOCK.min(rows - first);
-            let mut d = d_output[first * outputs..(first + n) * outputs].to_vec();
-            let mut d_input_skip: Option<Vec<f32>> = None;
-            for l in (0..self.layers.len()).rev() {
-                let layer = &self.layers[l];
-                if l + 1 < self.layers.len() {
-                    let pre = &cache.pre[l][first * layer.outputs..(first + n) * layer.outputs];
-                    self.activation.scale_by_derivative(pre, &mut d);
+            let width = padded(outputs);
+            refill(&mut d, n * width);
+            for (to, from) in
+                d.chunks_exact_mut(width).zip(d_output[first * outputs..(first + n) * outputs].chunks_exact(outputs))
+            {
+                to[..outputs].copy_from_slice(from);
+            }
+            let mut d_skip: Option<Vec<f32>> = None;
+            for (l, layer) in self.layers.iter().enumerate().rev() {
+                let (width_in, width_out) = (padded(layer.inputs), padded(layer.outputs));
+                if l < last {
+                    self.activation
+                        .scale_by_derivative(&cache.pre[l][first * width_out..(first + n) * width_out], &mut d);
                 }
-                let x = &cache.layer_inputs[l][first * layer.inputs..(first + n) * layer.inputs];
-                // dW += d^T x, db += column sums of d.
-                gemm(
-                    layer.outputs,
-                    n,
-                    layer.inputs,
-                    (&d, 1, layer.outputs as isize),
-                    (x, layer.inputs as isize, 1),
-                    1.0,
-                    &mut grad[layer.weight..layer.weight + layer.outputs * layer.inputs],
-                );
+                let x = &cache.layer_inputs[l][first * width_in..(first + n) * width_in];
+                let sums = weight_sums.as_mut().map(|s| s[l].as_mut_slice());
+                self.products.weight_gradient(layer, n, &d, x, sums, grad);
                 let gb = &mut grad[layer.bias..layer.bias + layer.outputs];
-                for row in d.chunks(layer.outputs) {
+                for row in d.chunks_exact(width_out) {
                     gb.iter_mut().zip(row).for_each(|(g, v)| *g += v);
                 }
-                // dx = d W.
-                let mut dx = vec![0f32; n * layer.inputs];
-                gemm(
-                    n,
-                    layer.outputs,
-                    layer.inputs,
-                    (&d, layer.outputs as isize, 1),
-                    (&params[layer.weight..], layer.inputs as isize, 1),
-                    0.0,
-                    &mut dx,
-                );
+                refill(&mut dx, n * width_in);
+                self.products.input_gradient(layer, params, weights.as_ref().map(|w| w[l].as_slice()), n, &d, &mut dx);
                 if self.skip == Some(l) {
+                    // `dx` is `[dh, dx_input] / sqrt(2)`: the first part goes on down, the second
+                    // joins the input gradient.
                     let hidden = layer.inputs - self.inputs;
-                    let (dh, dskip) = split_skip(&dx, n, hidden, self.inputs);
-                    d_input_skip = Some(dskip);
-                    d = dh;
+                    let width_h = padded(hidden);
+                    refill(&mut d, n * width_h);
+                    let mut skipped = Vec::with_capacity(n * self.inputs);
+                    for (to, from) in d.chunks_exact_mut(width_h).zip(dx.chunks_exact(width_in)) {
+                        to[..hidden].iter_mut().zip(&from[..hidden]).for_each(|(t, v)| *t = v * SKIP_SCALE);
+                        skipped.extend(from[hidden..layer.inputs].iter().map(|v| v * SKIP_SCALE));
+                    }
+                    d_skip = Some(skipped);
                 } else {
-                    d = dx;
+                    std::mem::swap(&mut d, &mut dx);
                 }
             }
-            if let Some(extra) = d_input_skip {
-                d.iter_mut().zip(extra).for_each(|(a, b)| *a += b);
+            let width = padded(self.inputs);
+            for (r, row) in d.chunks_exact(width).enumerate() {
+                let row = &row[..self.inputs];
+                match &d_skip {
+                    Some(skipped) => {
+                        let extra = &skipped[r * self.inputs..(r + 1) * self.inputs];
+                        d_input.extend(row.iter().zip(extra).map(|(a, b)| a + b));
+                    }
+                    None => d_input.extend_from_slice(row),
+                }
             }
-            d_input.extend_from_slice(&d);
+        }
+        if let Some(sums) = weight_sums {
+            for (layer, sum) in self.layers.iter().zip(sums) {
+                let grad_w = &mut grad[layer.weight..layer.weight + layer.outputs * layer.inputs];
+                for (to, from) in grad_w.chunks_exact_mut(layer.inputs).zip(sum.chunks_exact(padded(layer.inputs))) {
+                    to.iter_mut().zip(from).for_each(|(g, v)| *g += v);
+                }
+            }
         }
         d_input
     }
 }
 
+/// How the layers' matrix products run: every activation matrix is row-major with rows padded
+/// to whole panels ([`panel::padded`]), zeros in the padding, whichever runs them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Products {
+    /// matrixmultiply's SGEMM (processors without AVX2 and FMA).
+    Sgemm,
+    /// The panel kernels, which need no packing.
+    Panels(Isa),
+}
+
+impl Products {
+    /// The panel kernels where the processor runs them.
+    fn best() -> Self {
+        Isa::detect().map_or(Products::Sgemm, Products::Panels)
+    }
+
+    /// For the panels: each layer's weights transposed, `inputs x padded(outputs)`.
+    fn forward_weights(self, layers: &[Dense], params: &[f32]) -> Option<Vec<Vec<f32>>> {
+        let Products::Panels(_) = self else { return None };
+        let transposed = |layer: &Dense| {
+            let width = padded(layer.outputs);
+            let mut t = vec![0f32; layer.inputs * width];
+            let w = &params[layer.weight..layer.weight + layer.outputs * layer.inputs];
+            for (o, row) in w.chunks_exact(layer.inputs).enumerate() {
+                row.iter().enumerate().for_each(|(k, &v)| t[k * width + o] = v);
+            }
+            t
+        };
+        Some(layers.iter().map(transposed).collect())
+    }
+
+    /// For the panels: each layer's weights with padded rows, `outputs x padded(inputs)`.
+    fn backward_weights(self, layers: &[Dense], params: &[f32]) -> Option<Vec<Vec<f32>>> {
+        let Products::Panels(_) = self else { return None };
+        let padded_rows = |layer: &Dense| {
+            let width = padded(layer.inputs);
+            let mut p = vec![0f32; layer.outputs * width];
+            let w = &params[layer.weight..layer.weight + layer.outputs * layer.inputs];
+            for (to, from) in p.chunks_exact_mut(width).zip(w.chunks_exact(layer.inputs)) {
+                to[..layer.inputs].copy_from_slice(from);
+            }
+            p
+        };
+        Some(layers.iter().map(padded_rows).collect())
+    }
+
+    /// For the panels: each layer's weight gradient summed over every row of a backward pass,
+    /// `outputs x padded(inputs)`, added to the gradient at its end.
+    fn weight_gradient_sums(self, layers: &[Dense]) -> Option<Vec<Vec<f32>>> {
+        let Products::Panels(_) = self else { return None };
+        Some(layers.iter().map(|l| vec![0f32; l.outputs * padded(l.inputs)]).collect())
+    }
+
+    /// `y += x W^T` over `n` rows (`x`: `n x padded(inputs)`, `y`: `n x padded(outputs)`).
+    fn forward(self, layer: &Dense, params: &[f32], transposed: Option<&[f32]>, n: usize, x: &[f32], y: &mut [f32]) {
+        let (width_in, width_out) = (padded(layer.inputs), padded(layer.outputs));
+        match (self, transposed) {
+            (Products::Panels(isa), Some(t)) => panel::accumulate(
+                isa,
+                n,
+                layer.inputs,
+                Strided { data: x, row: width_in, column: 1 },
+                Panels { data: t, stride: width_out, width: width_out },
+                Panels { data: y, stride: width_out, width: width_out },
+            ),
+            _ => gemm(
+                (n, layer.inputs, layer.outputs),
+                (x, width_in as isize, 1),
+                (&params[layer.weight..], 1, layer.inputs as isize),
+                1.0,
+                (y, width_out),
+            ),
+        }
+    }
+
+    /// `dW += d^T x` over `n` rows: into `sums` (`outputs x padded(inputs)`) for the panels,
+    /// straight into `grad` for SGEMM.
+    fn weight_gradient(
+        self,
+        layer: &Dense,
+        n: usize,
+        d: &[f32],
+        x: &[f32],
+        sums: Option<&mut [f32]>,
+        grad: &mut [f32],
+    ) {
+        let (width_in, width_out) = (padded(layer.inputs), padded(layer.outputs));
+        match (self, sums) {
+            (Products::Panels(isa), Some(sums)) => panel::accumulate(
+                isa,
+                layer.outputs,
+                n,
+                Strided { data: d, row: 1, column: width_out },
+                Panels { data: x, stride: width_in, width: width_in },
+                Panels { data: sums, stride: width_in, width: width_in },
+            ),
+            _ => gemm(
+                (layer.outputs, n, layer.inputs),
+                (d, 1, width_out as isize),
+                (x, width_in as isize, 1),
+                1.0,
+                (&mut grad[layer.weight..layer.weight + layer.outputs * layer.inputs], layer.inputs),
+            ),
+        }
+    }
+
+    /// `dx = d W` over `n` rows (`d`: `n x padded(outputs)`, `dx`: `n x padded(inputs)`, zeros).
+    fn input_gradient(
+        self,
+        layer: &Dense,
+        params: &[f32],
+        padded_rows: Option<&[f32]>,
+        n: usize,
+        d: &[f32],
+        dx: &mut [f32],
+    ) {
+        let (width_in, width_out) = (padded(layer.inputs), padded(layer.outputs));
+        match (self, padded_rows) {
+            (Products::Panels(isa), Some(w)) => panel::accumulate(
+                isa,
+                n,
+                layer.outputs,
+                Strided { data: d, row: width_out, column: 1 },
+                Panels { data: w, stride: width_in, width: width_in },
+                Panels { data: dx, stride: width_in, width: width_in },
+            ),
+            _ => gemm(
+                (n, layer.outputs, layer.inputs),
+                (d, width_out as isize, 1),
+                (&params[layer.weight..], layer.inputs as isize, 1),
+                0.0,
+                (dx, width_in),
+            ),
+        }
+    }
+}
+
+/// `v = [0; len]`, keeping its allocation.
+fn refill(v: &mut Vec<f32>, len: usize) {
+    v.clear();
+    v.resize(len, 0.0);
+}
+
 /// Rows taken through all the layers together, so that a block's activations stay in the
 /// core's cache instead of whole batches going through memory layer by layer. A multiple of
 /// matrixmultiply's depth block (256): the weight gradient, a sum over rows, is then added up
-/// in the same order as by one product over all rows, and results do not depend on it.
+/// in the same order as by one product over all rows, and results do not depend on it (the
+/// panels sum every row in order whatever the blocks).
 const ROW_BLOCK: usize = 512;
 
 const SKIP_SCALE: f32 = std::f32::consts::FRAC_1_SQRT_2;
 
-fn concat_skip(h: &[f32], input: &[f32], rows: usize, hidden: usize, inputs: usize) -> Vec<f32> {
-    let mut out = Vec::with_capacity(rows * (hidden + inputs));
-    for r in 0..rows {
-        out.extend(h[r * hidden..(r + 1) * hidden].iter().map(|v| v * SKIP_SCALE));
-        out.extend(input[r * inputs..(r + 1) * inputs].iter().map(|v| v * SKIP_SCALE));
-    }
-    out
-}
-
-fn split_skip(dx: &[f32], rows: usize, hidden: usize, inputs: usize) -> (Vec<f32>, Vec<f32>) {
-    let (mut dh, mut di) = (Vec::with_capacity(rows * hidden), Vec::with_capacity(rows * inputs));
-    for row in dx.chunks(hidden + inputs) {
-        dh.extend(row[..hidden].iter().map(|v| v * SKIP_SCALE));
-        di.extend(row[hidden..].iter().map(|v| v * SKIP_SCALE));
-    }
-    (dh, di)
-}
-
-/// `c (m x n, row-major) = beta c + a (m x k) b (k x n)`; `a` and `b` given with row and column
-/// strides.
-fn gemm(m: usize, k: usize, n: usize, a: (&[f32], isize, isize), b: (&[f32], isize, isize), beta: f32, c: &mut [f32]) {
-    assert!(c.len() >= m * n);
+/// `c (m x n, rows `c.1` apart) = beta c + a (m x k) b (k x n)`; `a` and `b` given with row and
+/// column strides.
+fn gemm(
+    (m, k, n): (usize, usize, usize),
+    a: (&[f32], isize, isize),
+    b: (&[f32], isize, isize),
+    beta: f32,
+    c: (&mut [f32], usize),
+) {
     if m == 0 || n == 0 {
         return;
     }
+    assert!(c.1 >= n && c.0.len() >= (m - 1) * c.1 + n);
     let max_index =
         |rows: usize, cols: usize, rs: isize, cs: isize| (rows - 1) as isize * rs + (cols - 1) as isize * cs;
     if k > 0 {
@@ -392,8 +565,8 @@ fn gemm(m: usize, k: usize, n: usize, a: (&[f32], isize, isize), b: (&[f32], isi
             b.1,
             b.2,
             beta,
-            c.as_mut_ptr(),
-            n as isize,
+            c.0.as_mut_ptr(),
+            c.1 as isize,
             1,
         );
     }
@@ -437,6 +610,48 @@ mod tests {
         }
         for (k, (a, b)) in grad.iter().zip(&grad_rows).enumerate() {
             assert!(close(*a, *b as f32, 1e-4), "parameter {k}: gradient {a} against {b}");
+        }
+    }
+
+    #[test]
+    fn the_panel_kernels_give_what_sgemm_gives() {
+        // The fast preset's SDF network (35 inputs: a width of no whole panels), a colour network
+        // (ReLU, 3 outputs) and one with a skip connection, each over two blocks and a part.
+        let Some(isa) = Isa::detect() else { return };
+        let shapes = [
+            (35, 64, 2, 16, Activation::Softplus(100.0), None),
+            (21, 64, 2, 3, Activation::Relu, None),
+            (5, 24, 3, 3, Activation::Softplus(10.0), Some(2)),
+        ];
+        for (inputs, hidden, depth, outputs, activation, skip) in shapes {
+            let mut layout = ParamLayout::default();
+            let mut mlp = Mlp::new(&mut layout, inputs, hidden, depth, outputs, activation, skip);
+            let mut rng = Rng::for_pixel(11, inputs as u32, 0);
+            let mut params = vec![0f32; layout.len()];
+            mlp.init(&mut params, Init::Default, &mut rng);
+            let rows = 2 * ROW_BLOCK + 91;
+            let input: Vec<f32> = (0..rows * inputs).map(|_| rng.normal()).collect();
+            let d_output: Vec<f32> = (0..rows * outputs).map(|_| rng.normal()).collect();
+            let mut run = |products| {
+                mlp.products = products;
+                let mut cache = MlpCache::default();
+                let out = mlp.forward(&params, &input, rows, &mut cache);
+                let mut grad = vec![0f32; params.len()];
+                let d_input = mlp.backward(&params, &cache, &d_output, &mut grad);
+                assert_eq!(out, mlp.infer(&params, &input, rows), "{products:?}: inference and training differ");
+                (out, d_input, grad)
+            };
+            let (plain, fused) = (run(Products::Sgemm), run(Products::Panels(isa)));
+            // Both sum the same f32 terms in other orders: within 1e-5 of each vector's largest.
+            for (what, a, b) in [
+                ("output", &plain.0, &fused.0),
+                ("input gradient", &plain.1, &fused.1),
+                ("gradient", &plain.2, &fused.2),
+            ] {
+                let scale = a.iter().fold(0f32, |m, v| m.max(v.abs()));
+                let worst = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0f32, f32::max);
+                assert!(worst <= 1e-5 * scale, "{inputs}-{hidden}x{depth}-{outputs} {what}: {worst} of {scale}");
+            }
         }
     }
 

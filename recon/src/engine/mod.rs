@@ -7,6 +7,7 @@ pub mod adam;
 pub mod dense;
 pub mod encoding;
 pub mod hashgrid;
+pub mod panel;
 pub mod params;
 pub mod vector;
 
