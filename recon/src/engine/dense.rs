@@ -250,8 +250,8 @@ impl Mlp {
         for first in (0..rows).step_by(ROW_BLOCK) {
             let n = ROW_BLOCK.min(rows - first);
             let at = if keep { first } else { 0 };
-            // Each block's rows zeroed as it starts, while they are about to be written (the
-            // padding is never written otherwise).
+            // A block's rows are added (zeros) as it starts, right before they are written, or
+            // reused in scratch; their padding columns are never written and stay zero.
             for (l, layer) in self.layers.iter().enumerate() {
                 cache.layer_inputs[l].resize((at + n) * padded(layer.inputs), 0.0);
                 if l < last {
