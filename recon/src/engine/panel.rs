@@ -1,8 +1,9 @@
 //! The small dense layers' matrix products without packing: `C += A B`, where every row of `B`
 //! and `C` is a whole number of 16-float panels and each element of `A` is broadcast against a
 //! row of `B`. A tile of `C` (a few rows, up to 64 columns) stays in vector registers while the
-//! product runs down its depth, so the 64-wide layers of the fast networks take no copy at all
-//! (matrixmultiply packs both operands of every product, a sixth of its time on these shapes).
+//! product runs down its depth, so the activations of the 64-wide layers of the fast networks
+//! are never copied (matrixmultiply packs both operands of every product: nearly two fifths of
+//! its time in a fast training step).
 //!
 //! Compiled for AVX-512 and for AVX2 with FMA, chosen at run time ([`Isa::detect`]); elsewhere
 //! the networks keep matrixmultiply. Each element of `C` is summed over the depth in ascending
