@@ -2,7 +2,7 @@
 //! kernels ([`super::panel`]; `matrixmultiply`'s SGEMM on processors without AVX2), with an
 //! optional skip connection and NeuS's geometric initialisation.
 
-use super::panel::{self, padded, Isa, Panels, Strided};
+use super::panel::{self, padded, Isa, Panels, Start, Strided};
 use super::params::{Group, ParamLayout};
 use multiversion::multiversion;
 use rmvp_dataset::rng::Rng;
@@ -334,7 +334,7 @@ impl Mlp {
                 for row in d.chunks_exact(width_out) {
                     gb.iter_mut().zip(row).for_each(|(g, v)| *g += v);
                 }
-                refill(&mut dx, n * width_in);
+                dx.resize(n * width_in, 0.0);
                 self.products.input_gradient(layer, params, weights.as_ref().map(|w| w[l].as_slice()), n, &d, &mut dx);
                 if self.skip == Some(l) {
                     // `dx` is `[dh, dx_input] / sqrt(2)`: the first part goes on down, the second
@@ -422,9 +422,9 @@ impl Products {
         let bias = &params[layer.bias..layer.bias + layer.outputs];
         match (self, transposed) {
             (Products::Panels(isa), Some(t)) => {
-                y.fill(0.0);
-                panel::accumulate(
+                panel::product(
                     isa,
+                    Start::Overwrite,
                     n,
                     layer.inputs,
                     Strided { data: x, row: width_in, column: 1 },
@@ -476,9 +476,10 @@ impl Products {
         };
         for first in (0..n).step_by(DEPTH_BLOCK) {
             let rows = DEPTH_BLOCK.min(n - first);
-            refill(block_sum, layer.outputs * width_in);
-            panel::accumulate(
+            block_sum.resize(layer.outputs * width_in, 0.0);
+            panel::product(
                 isa,
+                Start::Overwrite,
                 layer.outputs,
                 rows,
                 Strided { data: &d[first * width_out..], row: 1, column: width_out },
@@ -491,7 +492,8 @@ impl Products {
         }
     }
 
-    /// `dx = d W` over `n` rows (`d`: `n x padded(outputs)`, `dx`: `n x padded(inputs)`, zeros).
+    /// `dx = d W` over `n` rows (`d`: `n x padded(outputs)`, `dx`: `n x padded(inputs)`, all of
+    /// it written, zeros in its padding).
     fn input_gradient(
         self,
         layer: &Dense,
@@ -503,21 +505,25 @@ impl Products {
     ) {
         let (width_in, width_out) = (padded(layer.inputs), padded(layer.outputs));
         match (self, padded_rows) {
-            (Products::Panels(isa), Some(w)) => panel::accumulate(
+            (Products::Panels(isa), Some(w)) => panel::product(
                 isa,
+                Start::Overwrite,
                 n,
                 layer.outputs,
                 Strided { data: d, row: width_out, column: 1 },
                 Panels { data: w, stride: width_in, width: width_in },
                 Panels { data: dx, stride: width_in, width: width_in },
             ),
-            _ => gemm(
-                (n, layer.outputs, layer.inputs),
-                (d, width_out as isize, 1),
-                (&params[layer.weight..], layer.inputs as isize, 1),
-                0.0,
-                (dx, width_in),
-            ),
+            _ => {
+                dx.fill(0.0);
+                gemm(
+                    (n, layer.outputs, layer.inputs),
+                    (d, width_out as isize, 1),
+                    (&params[layer.weight..], layer.inputs as isize, 1),
+                    0.0,
+                    (dx, width_in),
+                );
+            }
         }
     }
 }

@@ -74,11 +74,28 @@ pub struct Panels<S> {
     pub width: usize,
 }
 
-/// `c[i, :] += sum over p < depth of a(i, p) b[p, :]` for the `rows` rows of `c`, on `isa`.
+/// What a product's sums start from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Start {
+    /// `c += a b`: from what `c` holds.
+    Add,
+    /// `c = a b`: from zero; what `c` held is never read.
+    Overwrite,
+}
+
+/// `c[i, :] (+)= sum over p < depth of a(i, p) b[p, :]` for the `rows` rows of `c`, on `isa`.
 ///
 /// # Panics
 /// If `isa` does not run here, the widths are not whole panels, or an operand is too short.
-pub fn accumulate(isa: Isa, rows: usize, depth: usize, a: Strided, b: Panels<&[f32]>, c: Panels<&mut [f32]>) {
+pub fn product(
+    isa: Isa,
+    start: Start,
+    rows: usize,
+    depth: usize,
+    a: Strided,
+    b: Panels<&[f32]>,
+    c: Panels<&mut [f32]>,
+) {
     assert!(isa.available(), "{isa:?} does not run on this processor");
     assert!(b.width == c.width && c.width.is_multiple_of(LANES) && c.width <= c.stride && b.width <= b.stride);
     if rows == 0 || c.width == 0 {
@@ -86,90 +103,101 @@ pub fn accumulate(isa: Isa, rows: usize, depth: usize, a: Strided, b: Panels<&[f
     }
     assert!(c.data.len() >= (rows - 1) * c.stride + c.width, "c too short");
     if depth == 0 {
+        if start == Start::Overwrite {
+            c.data.chunks_mut(c.stride).take(rows).for_each(|row| row[..c.width].fill(0.0));
+        }
         return;
     }
     assert!(b.data.len() >= (depth - 1) * b.stride + b.width, "b too short");
     assert!(a.data.len() > (rows - 1) * a.row + (depth - 1) * a.column, "a too short");
     match isa {
         // SAFETY: `available` has checked that the processor has the instructions.
-        Isa::Avx512 => unsafe { accumulate_avx512(rows, depth, a, b, c) },
-        Isa::Avx2 => unsafe { accumulate_avx2(rows, depth, a, b, c) },
+        Isa::Avx512 => unsafe { product_avx512(start, rows, depth, a, b, c) },
+        Isa::Avx2 => unsafe { product_avx2(start, rows, depth, a, b, c) },
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,fma")]
-fn accumulate_avx512(rows: usize, depth: usize, a: Strided, b: Panels<&[f32]>, c: Panels<&mut [f32]>) {
-    accumulate_tiles::<4, 64>(rows, depth, a, b, c);
+fn product_avx512(start: Start, rows: usize, depth: usize, a: Strided, b: Panels<&[f32]>, c: Panels<&mut [f32]>) {
+    product_tiles::<4, 64>(start, rows, depth, a, b, c);
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn accumulate_avx2(rows: usize, depth: usize, a: Strided, b: Panels<&[f32]>, c: Panels<&mut [f32]>) {
-    accumulate_tiles::<2, 32>(rows, depth, a, b, c);
+fn product_avx2(start: Start, rows: usize, depth: usize, a: Strided, b: Panels<&[f32]>, c: Panels<&mut [f32]>) {
+    product_tiles::<2, 32>(start, rows, depth, a, b, c);
 }
 
 #[cfg(not(target_arch = "x86_64"))]
-fn accumulate_avx512(_: usize, _: usize, _: Strided, _: Panels<&[f32]>, _: Panels<&mut [f32]>) {
+fn product_avx512(_: Start, _: usize, _: usize, _: Strided, _: Panels<&[f32]>, _: Panels<&mut [f32]>) {
     unreachable!("no AVX-512 outside x86_64")
 }
 
 #[cfg(not(target_arch = "x86_64"))]
-fn accumulate_avx2(_: usize, _: usize, _: Strided, _: Panels<&[f32]>, _: Panels<&mut [f32]>) {
+fn product_avx2(_: Start, _: usize, _: usize, _: Strided, _: Panels<&[f32]>, _: Panels<&mut [f32]>) {
     unreachable!("no AVX2 outside x86_64")
+}
+
+/// Where the tiles write: `c` as a pointer, so that each tile takes its rows without splitting
+/// the slice around the other columns.
+#[derive(Clone, Copy)]
+struct Output {
+    data: *mut f32,
+    stride: usize,
+    start: Start,
 }
 
 /// Tiles of `R` rows by up to `W` columns (the widest whole panels left), then the rows that do
 /// not fill a tile one at a time.
 #[inline(always)]
-fn accumulate_tiles<const R: usize, const W: usize>(
+fn product_tiles<const R: usize, const W: usize>(
+    start: Start,
     rows: usize,
     depth: usize,
     a: Strided,
     b: Panels<&[f32]>,
     c: Panels<&mut [f32]>,
 ) {
-    let c_ptr = c.data.as_mut_ptr();
+    let out = Output { data: c.data.as_mut_ptr(), stride: c.stride, start };
     let mut column = 0;
     while column < c.width {
         let left = c.width - column;
         let taken = match left {
-            _ if W >= 64 && left >= 64 => tile_column::<R, 64>(rows, depth, a, &b, c_ptr, c.stride, column),
-            _ if W >= 48 && left >= 48 => tile_column::<R, 48>(rows, depth, a, &b, c_ptr, c.stride, column),
-            _ if left >= 32 => tile_column::<R, 32>(rows, depth, a, &b, c_ptr, c.stride, column),
-            _ => tile_column::<R, 16>(rows, depth, a, &b, c_ptr, c.stride, column),
+            _ if W >= 64 && left >= 64 => tile_column::<R, 64>(rows, depth, a, &b, out, column),
+            _ if W >= 48 && left >= 48 => tile_column::<R, 48>(rows, depth, a, &b, out, column),
+            _ if left >= 32 => tile_column::<R, 32>(rows, depth, a, &b, out, column),
+            _ => tile_column::<R, 16>(rows, depth, a, &b, out, column),
         };
         column += taken;
     }
 }
 
-/// Columns `column..column + W` of every row of `c` (a pointer, so that each tile takes its
-/// rows without splitting the slice around the other columns); returns `W`.
+/// Columns `column..column + W` of every row of `out`; returns `W`.
 #[inline(always)]
 fn tile_column<const R: usize, const W: usize>(
     rows: usize,
     depth: usize,
     a: Strided,
     b: &Panels<&[f32]>,
-    c_ptr: *mut f32,
-    c_stride: usize,
+    out: Output,
     column: usize,
 ) -> usize {
     let mut first = 0;
     while first + R <= rows {
-        // SAFETY: `accumulate` checked every index these tiles touch against the slices.
-        unsafe { tile::<R, W>(first, depth, a, b, c_ptr, c_stride, column) };
+        // SAFETY: `product` checked every index these tiles touch against the slices.
+        unsafe { tile::<R, W>(first, depth, a, b, out, column) };
         first += R;
     }
     while first < rows {
         // SAFETY: as above.
-        unsafe { tile::<1, W>(first, depth, a, b, c_ptr, c_stride, column) };
+        unsafe { tile::<1, W>(first, depth, a, b, out, column) };
         first += 1;
     }
     W
 }
 
-/// `c[first..first + R][column..column + W] += a(first.., p) b[p][column..column + W]`, the
+/// `c[first..first + R][column..column + W] (+)= a(first.., p) b[p][column..column + W]`, the
 /// tile held in registers down the whole depth.
 ///
 /// # Safety
@@ -180,15 +208,17 @@ unsafe fn tile<const R: usize, const W: usize>(
     depth: usize,
     a: Strided,
     b: &Panels<&[f32]>,
-    c: *mut f32,
-    c_stride: usize,
+    out: Output,
     column: usize,
 ) {
+    let at = |r: usize| (first + r) * out.stride + column;
     let mut acc = [[0f32; W]; R];
-    for (r, row) in acc.iter_mut().enumerate() {
-        // SAFETY: the caller's bounds.
-        let from = unsafe { std::slice::from_raw_parts(c.add((first + r) * c_stride + column), W) };
-        row.copy_from_slice(from);
+    if out.start == Start::Add {
+        for (r, row) in acc.iter_mut().enumerate() {
+            // SAFETY: the caller's bounds.
+            let from = unsafe { std::slice::from_raw_parts(out.data.add(at(r)), W) };
+            row.copy_from_slice(from);
+        }
     }
     let (a_data, b_data) = (a.data.as_ptr(), b.data.as_ptr());
     for p in 0..depth {
@@ -204,7 +234,7 @@ unsafe fn tile<const R: usize, const W: usize>(
     }
     for (r, row) in acc.iter().enumerate() {
         // SAFETY: the caller's bounds; no other tile writes these elements.
-        let to = unsafe { std::slice::from_raw_parts_mut(c.add((first + r) * c_stride + column), W) };
+        let to = unsafe { std::slice::from_raw_parts_mut(out.data.add(at(r)), W) };
         to.copy_from_slice(row);
     }
 }
@@ -259,8 +289,9 @@ mod tests {
                     Strided { data: a_data, row: depth, column: 1 }
                 };
                 let mut c = c0.clone();
-                accumulate(
+                product(
                     isa,
+                    Start::Add,
                     rows,
                     depth,
                     a,
@@ -289,6 +320,25 @@ mod tests {
                         c[i * c_stride + width..(i + 1) * c_stride] == c0[i * c_stride + width..(i + 1) * c_stride]
                     );
                 }
+                // Overwriting gives what adding to zeros gives, whatever `c` held.
+                let mut zeros = c0.clone();
+                zeros.chunks_mut(c_stride).for_each(|row| row[..width].fill(0.0));
+                let mut overwritten = c0.clone();
+                for (start, into) in [(Start::Add, &mut zeros), (Start::Overwrite, &mut overwritten)] {
+                    product(
+                        isa,
+                        start,
+                        rows,
+                        depth,
+                        a,
+                        Panels { data: b, stride: b_stride, width },
+                        Panels { data: into, stride: c_stride, width },
+                    );
+                }
+                assert!(
+                    zeros == overwritten,
+                    "{isa:?} {rows}x{depth}x{width}: overwriting differs from adding to zeros"
+                );
                 per_isa.push(c);
             }
             results.push(per_isa);
