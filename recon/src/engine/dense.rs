@@ -243,6 +243,14 @@ impl Mlp {
         cache.layer_inputs.resize_with(self.layers.len(), Vec::new);
         cache.pre.resize_with(last, Vec::new);
         cache.layer_inputs.iter_mut().chain(&mut cache.pre).for_each(Vec::clear);
+        // Room for every row kept at once: the buffers grow block by block without moving.
+        let kept = if keep { rows } else { ROW_BLOCK.min(rows) };
+        for (l, layer) in self.layers.iter().enumerate() {
+            cache.layer_inputs[l].reserve(kept * padded(layer.inputs));
+            if l < last {
+                cache.pre[l].reserve(kept * padded(layer.outputs));
+            }
+        }
         let weights = self.products.forward_weights(&self.layers, params);
         let mut result = Vec::with_capacity(rows * self.outputs());
         let mut output_block = vec![0f32; ROW_BLOCK.min(rows) * padded(self.outputs())];
