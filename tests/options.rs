@@ -28,6 +28,7 @@ fn changed(field: &str) -> (&'static str, &'static str) {
         "iters" => ("3", "3"),
         "no_geometric" | "no_photometric" | "mesh_only" => ("", "true"),
         "batch" => ("48", "48"),
+        "samples_per_step" => ("2000", "2000"),
         "coarse_samples" => ("20", "20"),
         "fine_samples" => ("12", "12"),
         "min_sample_weight" => ("0.001", "0.001"),

@@ -48,9 +48,9 @@ fn main() {
                     let mut trainer = checkpoint::load(&path, set, &recorded, None).expect("checkpoint");
                     trainer.config = config;
                     trainer.refresh_occupancy();
-                    let (ms, samples) = measure(&mut trainer, 2, steps, true);
+                    let (ms, rays, samples) = measure(&mut trainer, 2, steps, true);
                     let label = if min_weight.is_some() { "every sample" } else { "as trained" };
-                    report(&format!("trained, {label}"), threads, ms, trainer.config.batch_rays, samples);
+                    report(&format!("trained, {label}"), threads, ms, rays, samples);
                 });
             }
         }
@@ -74,31 +74,33 @@ fn main() {
                     .and_then(|s| s.parse().ok())
                     .unwrap_or(trainer.config.diffuse_only);
                 let (warm, n) = if preset == Preset::Paper { (1, steps.div_ceil(5)) } else { (3, steps) };
-                let (ms, samples) = measure(&mut trainer, warm, n, false);
-                report(name, threads, ms, trainer.config.batch_rays, samples);
+                let (ms, rays, samples) = measure(&mut trainer, warm, n, false);
+                report(name, threads, ms, rays, samples);
             });
         }
     }
 }
 
-/// The median milliseconds of `n` steps after `warm` steps, and the samples of the last; with
-/// `restore`, each step starts from the same parameters (a trained model stays as trained).
-fn measure(trainer: &mut Trainer, warm: u32, n: u32, restore: bool) -> (f64, usize) {
+/// The median milliseconds of `n` steps after `warm` steps, and the rays and samples of the
+/// last; with `restore`, each step starts from the same parameters (a trained model stays as
+/// trained).
+fn measure(trainer: &mut Trainer, warm: u32, n: u32, restore: bool) -> (f64, usize, usize) {
     let start_params = trainer.params.clone();
     for _ in 0..warm {
         trainer.step();
     }
-    let (mut times, mut samples) = (Vec::new(), 0);
+    let (mut times, mut rays, mut samples) = (Vec::new(), 0, 0);
     for _ in 0..n {
         if restore {
             trainer.params.clone_from(&start_params);
         }
         let start = Instant::now();
-        samples = trainer.step().samples;
+        let report = trainer.step();
+        (rays, samples) = (report.rays, report.samples);
         times.push(start.elapsed().as_secs_f64() * 1e3);
     }
     times.sort_by(f64::total_cmp);
-    (times[times.len() / 2], samples)
+    (times[times.len() / 2], rays, samples)
 }
 
 /// One line of the table.

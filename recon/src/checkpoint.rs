@@ -2,6 +2,7 @@
 //! options, written atomically and read back so that a resumed run repeats an uninterrupted one
 //! bit for bit. A header is compared with the run before anything is built from it.
 
+use crate::config::RAYS_RANGE;
 use crate::data::TrainingSet;
 use crate::occupancy::OccupancyGrid;
 use crate::options::ReconOptions;
@@ -20,6 +21,7 @@ pub fn save(trainer: &Trainer, options: Option<&ReconOptions>, path: &Path) -> R
         config: trainer.config.clone(),
         options: options.cloned(),
         iteration: trainer.iteration,
+        rays: trainer.rays,
         adam_steps: trainer.adam.steps,
         parameters: trainer.params.len(),
         occupancy: occupancy.len(),
@@ -90,7 +92,17 @@ pub fn load(path: &Path, set: TrainingSet, config: &TrainConfig, options: Option
     if grid.as_ref().is_some_and(|g| g.values().iter().any(|v| !v.is_finite())) {
         return Err(bad("non-finite occupancy grid"));
     }
-    trainer.restore(floats[..n].to_vec(), adam, header.iteration, grid);
+    // A run whose rays follow its samples goes on with the rays it reached; otherwise the
+    // configuration's.
+    let rays = match header.rays {
+        0 => config.batch_rays,
+        rays if config.samples_per_step == 0 && rays != config.batch_rays => {
+            return Err(bad(&format!("{rays} rays for the next step, the run renders {}", config.batch_rays)))
+        }
+        rays if (config.batch_rays.div_ceil(RAYS_RANGE)..=config.batch_rays * RAYS_RANGE).contains(&rays) => rays,
+        rays => return Err(bad(&format!("{rays} rays for the next step, outside the run's range"))),
+    };
+    trainer.restore(floats[..n].to_vec(), adam, (header.iteration, rays), grid);
     Ok(trainer)
 }
 
@@ -146,6 +158,9 @@ struct CheckpointHeader {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     options: Option<ReconOptions>,
     iteration: u32,
+    /// Rays of the next step (0: the configuration's `batch_rays`).
+    #[serde(default)]
+    rays: usize,
     adam_steps: u32,
     parameters: usize,
     /// Values of the occupancy grid after the optimiser state (0: none).

@@ -18,8 +18,14 @@ pub struct TrainConfig {
     pub model: ModelConfig,
     /// Total iterations.
     pub iterations: u32,
-    /// Rays per iteration.
+    /// Rays per iteration: every step's, or the first's where `samples_per_step` is set.
     pub batch_rays: usize,
+    /// Samples a step should render: each step's rays are those of the step before scaled by
+    /// this over the samples that step rendered (instant-NGP's dynamic batch), between
+    /// [`RAYS_RANGE`] times fewer and more than `batch_rays`; 0: every step renders
+    /// `batch_rays` rays.
+    #[serde(default)]
+    pub samples_per_step: usize,
     /// Samples per ray.
     pub sampling: Sampling,
     /// Optimiser.
@@ -68,6 +74,41 @@ pub struct TrainConfig {
     pub downscale: u32,
 }
 
+/// How far a step's rays may stray from `batch_rays` where they follow its samples: at most
+/// this many times fewer or more.
+pub const RAYS_RANGE: usize = 4;
+
+impl TrainConfig {
+    /// The rays of the step after one that rendered `samples` samples of `rays` rays: those
+    /// that would have rendered `samples_per_step` at the same samples per ray, within
+    /// [`RAYS_RANGE`] of `batch_rays`; `batch_rays` where the count is fixed.
+    pub fn next_rays(&self, rays: usize, samples: usize) -> usize {
+        if self.samples_per_step == 0 {
+            return self.batch_rays;
+        }
+        let wanted = (rays as f64 * self.samples_per_step as f64 / samples.max(1) as f64).round() as usize;
+        wanted.clamp(self.batch_rays.div_ceil(RAYS_RANGE), self.batch_rays * RAYS_RANGE)
+    }
+}
+
 fn full_size() -> u32 {
     1
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::presets::{training, Preset};
+
+    #[test]
+    fn a_steps_rays_follow_the_samples_per_ray_of_the_step_before_within_their_range() {
+        let mut config = training(Preset::Fast, 100);
+        config.batch_rays = 256;
+        assert_eq!(config.next_rays(100, 9000), 256, "a fixed count stays fixed");
+        config.samples_per_step = 4096;
+        assert_eq!(config.next_rays(256, 8192), 128);
+        assert_eq!(config.next_rays(300, 2400), 512);
+        assert_eq!(config.next_rays(256, 3000), 350, "rounded to the nearest ray");
+        assert_eq!(config.next_rays(256, 1 << 20), 64, "a quarter of the batch at least");
+        assert_eq!(config.next_rays(256, 0), 1024, "four times the batch at most");
+    }
 }

@@ -36,6 +36,12 @@ pub struct ReconOptions {
     /// Rays per iteration (default: the preset's; fast 256, dense and paper 512).
     #[cfg_attr(feature = "clap", arg(long))]
     pub batch: Option<usize>,
+    /// Samples a step should render: each step's rays follow the samples per ray of the step
+    /// before, from `--batch` rays at the first and within 4 times fewer or more (instant-NGP's
+    /// dynamic batch; a step costs about what its samples cost); 0: every step renders
+    /// `--batch` rays (default: the preset's; 0).
+    #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
+    pub samples_per_step: Option<usize>,
     /// Uniform samples per ray between near and far (default: the preset's; fast 32).
     #[cfg_attr(feature = "clap", arg(long))]
     pub coarse_samples: Option<usize>,
@@ -144,6 +150,7 @@ impl Default for ReconOptions {
             no_geometric: false,
             no_photometric: false,
             batch: None,
+            samples_per_step: None,
             coarse_samples: None,
             fine_samples: None,
             min_sample_weight: None,
@@ -248,6 +255,9 @@ impl ReconOptions {
         config.downscale = self.downscale;
         if let Some(b) = self.batch {
             config.batch_rays = b;
+        }
+        if let Some(n) = self.samples_per_step {
+            config.samples_per_step = n;
         }
         if let Some(n) = self.coarse_samples {
             config.sampling.coarse = n;

@@ -157,6 +157,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         model,
         iterations,
         batch_rays,
+        samples_per_step: 0,
         sampling,
         adam,
         weights: LossWeights::from_fn(|term| match term {

@@ -87,6 +87,8 @@ pub struct Trainer {
     pub adam: Adam,
     /// Next iteration to run.
     pub iteration: u32,
+    /// Rays the next step renders ([`TrainConfig::next_rays`]).
+    pub rays: usize,
     /// The engine that computes each step's gradient.
     compute: Box<dyn StepCompute>,
     /// The step's gradient, kept from step to step (as long as `params`).
@@ -112,8 +114,21 @@ impl Trainer {
         let safe = (params.clone(), adam.clone(), 0);
         let compute = Box::new(CpuStep);
         let grad = vec![0.0; params.len()];
-        let mut trainer =
-            Self { config, model, set, params, adam, iteration: 0, compute, grad, bad_steps: 0, safe, occupancy: None };
+        let rays = config.batch_rays;
+        let mut trainer = Self {
+            config,
+            model,
+            set,
+            params,
+            adam,
+            iteration: 0,
+            rays,
+            compute,
+            grad,
+            bad_steps: 0,
+            safe,
+            occupancy: None,
+        };
         trainer.refresh_occupancy();
         trainer
     }
@@ -156,9 +171,9 @@ impl Trainer {
         let from_background = if set.background.is_empty() {
             0
         } else {
-            (self.config.background_share * self.config.batch_rays as f32).round() as usize
+            (self.config.background_share * self.rays as f32).round() as usize
         };
-        let batch: Vec<(u32, u32)> = (0..self.config.batch_rays)
+        let batch: Vec<(u32, u32)> = (0..self.rays)
             .map(|i| {
                 let pool = if i < from_background { &set.background } else { &set.pool };
                 pool[rng.next_u32() as usize % pool.len()]
@@ -203,6 +218,7 @@ impl Trainer {
             event: None,
             normal_error_deg: None,
         };
+        self.rays = self.config.next_rays(report.rays, samples);
         if !report.loss.is_finite() || !all_finite(&self.grad) {
             self.bad_steps += 1;
             if self.bad_steps >= 3 {
@@ -231,12 +247,19 @@ impl Trainer {
         report
     }
 
-    /// Restore the state a checkpoint recorded: parameters, optimiser state and the next
-    /// iteration (the last safe state too).
-    pub(crate) fn restore(&mut self, params: Vec<f32>, adam: Adam, iteration: u32, occupancy: Option<OccupancyGrid>) {
+    /// Restore the state a checkpoint recorded: parameters, optimiser state, the next
+    /// iteration and its rays (the last safe state too).
+    pub(crate) fn restore(
+        &mut self,
+        params: Vec<f32>,
+        adam: Adam,
+        (iteration, rays): (u32, usize),
+        occupancy: Option<OccupancyGrid>,
+    ) {
         self.params = params;
         self.adam = adam;
         self.iteration = iteration;
+        self.rays = rays;
         self.safe = (self.params.clone(), self.adam.clone(), self.iteration);
         self.occupancy = occupancy.map(Arc::new);
     }

@@ -172,15 +172,25 @@ fn resume_continues_bit_for_bit() {
     config.batch_rays = 64;
     config.diffuse_only = 19; // cross the warm-up boundary between stop and resume
     config.tangent_views = 4; // of the six views: each ray's sample drawn
+    config.samples_per_step = 1200; // each step's rays follow the samples of the one before
     assert!(config.sampling.skips_empty_space() && rmvp_recon::occupancy::REFRESH_EVERY == 16);
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     // On one thread here, on two below: the same steps whatever the number of threads.
     let mut straight = Trainer::new(config.clone(), set.clone());
-    rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap().install(|| {
-        for _ in 0..22 {
-            straight.step();
-        }
-    });
+    let reports: Vec<_> = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| (0..22).map(|_| straight.step()).collect());
+    // The first step renders the configured rays, more samples than asked for; from the
+    // third on, steps render the samples asked for, within a batch's spread (a step after the
+    // occupancy grid's refresh may take more: its rays follow the step before).
+    assert_eq!(reports[0].rays, 64);
+    assert!(reports[0].samples > 1500, "{}", reports[0].samples);
+    let mut later: Vec<usize> = reports[2..].iter().map(|r| r.samples).collect();
+    later.sort();
+    let median = later[later.len() / 2] as f64;
+    assert!((median / 1200.0 - 1.0).abs() < 0.1, "{median}: {later:?}");
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let mut first = Trainer::new(config.clone(), set.clone());
     // Stopped after the occupancy grid's refresh at 16, before the next.
@@ -201,6 +211,7 @@ fn resume_continues_bit_for_bit() {
         }
     });
     assert_eq!(resumed.iteration, straight.iteration);
+    assert_eq!(resumed.rays, straight.rays);
     assert!(resumed.params == straight.params, "parameters differ after resume");
     assert!(resumed.adam == straight.adam, "optimiser state differs after resume");
 
@@ -210,8 +221,21 @@ fn resume_continues_bit_for_bit() {
     let err = checkpoint::load(&path, set.clone(), &other, None).err().expect("another configuration");
     assert!(matches!(err, Error::CheckpointSettings { .. }), "{err}");
 
-    // One of another format (an older layout of the parameters) is refused, saying so.
+    // One whose next step's rays lie outside the run's range is refused, saying so.
     let bytes = std::fs::read(&path).unwrap();
+    let header_len = u64::from_le_bytes(bytes[8..16].try_into().unwrap()) as usize;
+    let mut header: serde_json::Value = serde_json::from_slice(&bytes[16..16 + header_len]).unwrap();
+    header["rays"] = serde_json::json!(64 * 5);
+    let header = serde_json::to_vec(&header).unwrap();
+    let mut edited = bytes[..8].to_vec();
+    edited.extend_from_slice(&(header.len() as u64).to_le_bytes());
+    edited.extend_from_slice(&header);
+    edited.extend_from_slice(&bytes[16 + header_len..]);
+    std::fs::write(&path, &edited).unwrap();
+    let err = checkpoint::load(&path, set.clone(), &config, None).err().expect("rays out of range");
+    assert!(matches!(&err, Error::BadCheckpoint { problem, .. } if problem.contains("320 rays")), "{err}");
+
+    // One of another format (an older layout of the parameters) is refused, saying so.
     let name = b"rmvp-recon-checkpoint-";
     let at = bytes.windows(name.len()).position(|w| w == name).expect("format in the header") + name.len();
     let mut older = bytes.clone();
