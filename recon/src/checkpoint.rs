@@ -2,7 +2,6 @@
 //! options, written atomically and read back so that a resumed run repeats an uninterrupted one
 //! bit for bit. A header is compared with the run before anything is built from it.
 
-use crate::config::RAYS_RANGE;
 use crate::data::TrainingSet;
 use crate::occupancy::OccupancyGrid;
 use crate::options::ReconOptions;
@@ -94,13 +93,14 @@ pub fn load(path: &Path, set: TrainingSet, config: &TrainConfig, options: Option
     }
     // A run whose rays follow its samples goes on with the rays it reached; otherwise the
     // configuration's.
+    let range = config.ray_range();
     let rays = match header.rays {
         0 => config.batch_rays,
-        rays if config.samples_per_step == 0 && rays != config.batch_rays => {
-            return Err(bad(&format!("{rays} rays for the next step, the run renders {}", config.batch_rays)))
+        rays if range.contains(&rays) => rays,
+        rays => {
+            let (least, most) = range.into_inner();
+            return Err(bad(&format!("{rays} rays for the next step, the run renders {least} to {most}")));
         }
-        rays if (config.batch_rays.div_ceil(RAYS_RANGE)..=config.batch_rays * RAYS_RANGE).contains(&rays) => rays,
-        rays => return Err(bad(&format!("{rays} rays for the next step, outside the run's range"))),
     };
     trainer.restore(floats[..n].to_vec(), adam, (header.iteration, rays), grid);
     Ok(trainer)

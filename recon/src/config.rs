@@ -79,15 +79,22 @@ pub struct TrainConfig {
 pub const RAYS_RANGE: usize = 4;
 
 impl TrainConfig {
+    /// The rays a step of this run may render: within [`RAYS_RANGE`] of `batch_rays` where they
+    /// follow the samples, `batch_rays` alone where the count is fixed.
+    pub fn ray_range(&self) -> std::ops::RangeInclusive<usize> {
+        match self.samples_per_step {
+            0 => self.batch_rays..=self.batch_rays,
+            _ => self.batch_rays.div_ceil(RAYS_RANGE)..=self.batch_rays * RAYS_RANGE,
+        }
+    }
+
     /// The rays of the step after one that rendered `samples` samples of `rays` rays: those
     /// that would have rendered `samples_per_step` at the same samples per ray, within
-    /// [`RAYS_RANGE`] of `batch_rays`; `batch_rays` where the count is fixed.
+    /// [`TrainConfig::ray_range`].
     pub fn next_rays(&self, rays: usize, samples: usize) -> usize {
-        if self.samples_per_step == 0 {
-            return self.batch_rays;
-        }
         let wanted = (rays as f64 * self.samples_per_step as f64 / samples.max(1) as f64).round() as usize;
-        wanted.clamp(self.batch_rays.div_ceil(RAYS_RANGE), self.batch_rays * RAYS_RANGE)
+        let range = self.ray_range();
+        wanted.clamp(*range.start(), *range.end())
     }
 }
 
