@@ -57,8 +57,8 @@ pub struct ReconOptions {
     /// renders, in space that ray does not see, this many per ray, drawn at random, still carry
     /// the curvature term for their share of them, where they lie outside the surface by 0.05
     /// or more: space no view sees past takes the field of the space around it, so that a
-    /// turntable capture grows less of a blob under its object (our ring seen only from above,
-    /// seeds 0-2: Chamfer 0.0156 and 0.0155 at seeds 0-1 with 0; 0.0045, 0.0083 and 0.0153
+    /// turntable capture grows less of a blob under its object (our ring seen only from above:
+    /// Chamfer 0.0156 and 0.0155 at seeds 0-1 with 0; 0.0045, 0.0083 and 0.0153 at seeds 0-2
     /// with 2; `--min-sample-weight 0` carves it at each, for twice the time); 0: the rendered
     /// samples alone (default: the preset's; fast 2, dense and paper 0).
     #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]

@@ -65,7 +65,7 @@ pub const MIN_SAMPLE_WEIGHT: f32 = 1e-4;
 /// The fast preset's samples a ray draws among those it leaves out behind the last it renders,
 /// where the curvature term still sees them ([`crate::step::Batch::left_out_draws`]): space
 /// that no view sees past takes the field of the space around it, so that a turntable capture
-/// grows no blob under its object (`docs/reconstruction.md`).
+/// grows less of a blob under its object, at some seeds none (`docs/reconstruction.md`).
 pub const REGULARISED_LEFT_OUT: usize = 2;
 
 /// The fast and dense presets' most views that the AoP tangent loss compares with a surface
