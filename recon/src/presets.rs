@@ -122,7 +122,14 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
     let (batch_rays, sampling, adam) = match preset {
         Preset::Paper => (
             512,
-            Sampling { coarse: 64, fine: 64, steps: 4, min_weight: 0.0, regularised_left_out: 0 },
+            Sampling {
+                coarse: 64,
+                fine: 64,
+                steps: 4,
+                min_weight: 0.0,
+                regularised_left_out: 0,
+                regularise_left_out_every: 0,
+            },
             AdamConfig {
                 lr_network: 5e-4,
                 lr_grid: 0.0,
@@ -142,6 +149,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
                 // The dense reference of 24 turntable views lost with them (Chamfer 0.0015 ->
                 // 0.0019, 533 -> 588 s on two threads; docs/benchmarks.md).
                 regularised_left_out: if preset == Preset::Fast { REGULARISED_LEFT_OUT } else { 0 },
+                regularise_left_out_every: 0,
             },
             AdamConfig {
                 lr_network: 2e-3,

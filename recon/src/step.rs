@@ -44,6 +44,12 @@ pub struct Batch {
     /// is rendered or none is drawn). Each stands for its share of those samples, so that the
     /// term's expected gradient is the one it has over all of them.
     pub left_out_draws: Vec<f32>,
+    /// For each ray, a number in `[0, 1)` that picks the first of the samples left out of the
+    /// step along it that the Eikonal and curvature terms still see; after it, one in
+    /// [`Sampling::regularise_left_out_every`](crate::volume::Sampling) (empty where every
+    /// sample is rendered or none is regularised). Each stands for that many samples, so that
+    /// over the starts the terms' gradient is the one they have over all of them.
+    pub left_out_starts: Vec<f32>,
     /// For each ray, where the systematic sample of the views that the geometric loss compares
     /// with its surface point starts, in `[0, 1)` (empty where every view is compared:
     /// [`TrainConfig::tangent_views`] is 0 or at least the training set's views).
@@ -219,7 +225,7 @@ impl Step<'_> {
             }
         }
         // Eikonal and curvature on every sample's finite differences, each sample once.
-        let d_gradients = self.eikonal_gradients(&fwd.field, &mut sums);
+        let d_gradients = self.eikonal_gradients(&fwd.field, 1.0, &mut sums);
         let d_laplacians = self.curvature_gradients(&fwd.field, |_| 1.0, &mut sums);
         let mut grad = vec![0f32; model.network_params()];
         let mut grid = fwd.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
@@ -251,7 +257,40 @@ impl Step<'_> {
                 grid.extend(self.smooth_unseen(points, &shares, &mut sums, &mut grad));
             }
         }
+        let every = config.sampling.regularise_left_out_every;
+        let starts = &self.batch.left_out_starts;
+        if every > 0 && !starts.is_empty() {
+            // One in `every` of each ray's samples left out, from its random start, stands for
+            // `every` of them: over the starts the Eikonal and curvature terms see every sample,
+            // as rendering every one does.
+            let mut points = Vec::new();
+            for ((ray, left_out), &u) in rays.iter().zip(&samples.left_out).zip(&starts[range]) {
+                let first = ((u * every as f32) as usize).min(every - 1);
+                left_out.iter().skip(first).step_by(every).for_each(|&depth| points.extend(ray.at(depth)));
+            }
+            if !points.is_empty() {
+                grid.extend(self.regularise(points, every as f32, &mut sums, &mut grad));
+            }
+        }
         (grad, grid, sums)
+    }
+
+    /// The Eikonal and curvature terms alone at `points` (n x 3), each point weighing
+    /// `weight` samples; adds the networks' gradient into `grad` and returns the hash grid's.
+    fn regularise(&self, points: Vec<f32>, weight: f32, sums: &mut ChunkSums, grad: &mut [f32]) -> GridGradient {
+        let batch = self.batch;
+        let field = FieldSamples::evaluate(self.model, self.params, &batch.level_weight, points, batch.fd_step);
+        let d_gradients = self.eikonal_gradients(&field, weight, sums);
+        let d_laplacians = self.curvature_gradients(&field, |_| weight, sums);
+        let zeros = |n: usize| vec![0f32; n];
+        let d = FieldGrad {
+            sdf: &zeros(field.sdf.len()),
+            normals: &zeros(field.normals.len()),
+            features: &zeros(field.features.len()),
+            gradients: &d_gradients,
+            laplacians: &d_laplacians,
+        };
+        field.backward(self.model, self.params, &d, grad)
     }
 
     /// The curvature term at those of `points` (n x 3) that lie outside the surface by at
@@ -273,17 +312,17 @@ impl Step<'_> {
         field.backward(self.model, self.params, &d, grad)
     }
 
-    /// The Eikonal term on `field`'s finite-difference gradients, each point weighing one
-    /// sample (of the step's every-sample count): its loss added to `sums`, and its gradient
+    /// The Eikonal term on `field`'s finite-difference gradients, each point weighing `weight`
+    /// samples (of the step's every-sample count): its loss added to `sums`, and its gradient
     /// with respect to the gradients (n x 3).
-    fn eikonal_gradients(&self, field: &FieldSamples, sums: &mut ChunkSums) -> Vec<f32> {
+    fn eikonal_gradients(&self, field: &FieldSamples, weight: f32, sums: &mut ChunkSums) -> Vec<f32> {
         let (w, samples) = (&self.config.weights, self.norm.samples);
         let mut d_gradients = vec![0f32; field.gradients.len()];
         for (g, d) in field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)) {
             let (loss, dg) = eikonal([g[0], g[1], g[2]]);
-            sums.losses[Term::Eikonal] += loss as f64 / samples as f64;
+            sums.losses[Term::Eikonal] += (loss * weight) as f64 / samples as f64;
             for k in 0..3 {
-                d[k] = w[Term::Eikonal] * dg[k] / samples;
+                d[k] = w[Term::Eikonal] * dg[k] * weight / samples;
             }
         }
         d_gradients

@@ -188,6 +188,8 @@ impl Trainer {
         let sampling = self.config.sampling;
         let draws = if sampling.skips_empty_space() { sampling.regularised_left_out * batch.len() } else { 0 };
         let left_out_draws = (0..draws).map(|_| rng.next_f32()).collect();
+        let regularised = sampling.skips_empty_space() && sampling.regularise_left_out_every > 0;
+        let left_out_starts = if regularised { batch.iter().map(|_| rng.next_f32()).collect() } else { Vec::new() };
         let views = self.config.tangent_views;
         let samples_views = use_geometric && views > 0 && views < set.views.len();
         let tangent_view_draws =
@@ -201,6 +203,7 @@ impl Trainer {
             use_geometric,
             occupancy,
             left_out_draws,
+            left_out_starts,
             tangent_view_draws,
         };
         let StepLosses { losses, samples } =

@@ -295,7 +295,14 @@ fn volume_rendering_end_to_end() {
     let (model, params) = small_model();
     let rays = test_rays();
     let lw = [1.0, 1.0, 1.0, 0.5];
-    let sampling = Sampling { coarse: 12, fine: 8, steps: 2, min_weight: 0.0, regularised_left_out: 0 };
+    let sampling = Sampling {
+        coarse: 12,
+        fine: 8,
+        steps: 2,
+        min_weight: 0.0,
+        regularised_left_out: 0,
+        regularise_left_out_every: 0,
+    };
     let depths = sample_depths(&model, &params, &lw, &rays, sampling, &[0.5; 5]);
     assert!(depths.iter().all(|d| d.len() == 20 && d.windows(2).all(|w| w[0] <= w[1])));
     check_volume_rendering("volume rendering", &model, &params, &lw, &rays, &depths);
@@ -315,7 +322,14 @@ fn volume_rendering_at_the_samples_that_carry_weight() {
     };
     rays.push(past);
     let lw = [1.0, 1.0, 1.0, 0.5];
-    let sampling = Sampling { coarse: 12, fine: 8, steps: 2, min_weight: 0.01, regularised_left_out: 0 };
+    let sampling = Sampling {
+        coarse: 12,
+        fine: 8,
+        steps: 2,
+        min_weight: 0.01,
+        regularised_left_out: 0,
+        regularise_left_out_every: 0,
+    };
     let grid = OccupancyGrid::new(&model, &params, &lw);
     let depths = weighted_samples(&model, &params, &lw, &rays, sampling, &[0.5; 6], Some(&grid)).rendered;
     let counts: Vec<usize> = depths.iter().map(Vec::len).collect();

@@ -81,6 +81,7 @@ fn random_batch(trainer: &Trainer, rng: &mut Rng, use_geometric: bool, occupancy
         use_geometric,
         occupancy: occupancy.cloned().map(std::sync::Arc::new),
         left_out_draws: Vec::new(),
+        left_out_starts: Vec::new(),
         tangent_view_draws: Vec::new(),
     }
 }
@@ -173,6 +174,7 @@ fn resume_continues_bit_for_bit() {
     config.diffuse_only = 19; // cross the warm-up boundary between stop and resume
     config.tangent_views = 4; // of the six views: each ray's sample drawn
     config.samples_per_step = 1200; // each step's rays follow the samples of the one before
+    config.sampling.regularise_left_out_every = 8; // the terms on one in 8 of the samples left out
     assert!(config.sampling.skips_empty_space() && rmvp_recon::occupancy::REFRESH_EVERY == 16);
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     // On one thread here, on two below: the same steps whatever the number of threads.
@@ -384,6 +386,73 @@ fn the_curvature_term_sees_the_unseen_space_a_step_leaves_out_as_if_each_sample_
     assert!((mean - truth).abs() < 4.0 * standard_error, "{mean} against {truth}");
     assert!(drawn > 0.1 * truth && unseen_truth > 0.1 * truth, "{drawn} of {truth}");
     assert!(spread < 0.5 * truth, "spread {spread} of {truth}");
+}
+
+#[test]
+fn the_regularisers_see_every_sample_a_step_leaves_out_as_if_each_were_rendered() {
+    use rmvp_recon::losses::{curvature, eikonal, Term};
+    use rmvp_recon::samples::FieldSamples;
+    use rmvp_recon::volume::weighted_samples;
+    let (mut config, set) = spot_steps(200);
+    // Without the draws behind what a ray sees: the terms on one in N of the samples left out.
+    config.sampling.regularised_left_out = 0;
+    let mut trainer = Trainer::new(config.clone(), set.clone());
+    for _ in 0..30 {
+        trainer.step();
+    }
+    // As sharp as after a few hundred iterations, so that most samples are left out.
+    let variance = trainer.model.variance;
+    trainer.params[variance] = 200f32.ln() / rmvp_recon::model::VARIANCE_SCALE;
+    // Without the occupancy grid the steps and the reference below take the same depths.
+    let mut rng = Rng::for_pixel(7 + rmvp_testkit::test_seed(), 0, 0);
+    let batch = random_batch(&trainer, &mut rng, false, None);
+    let (model, params) = (&trainer.model, &trainer.params);
+    let step = |every: usize, start: f32| {
+        let (mut config, mut batch) = (config.clone(), batch.clone());
+        config.sampling.regularise_left_out_every = every;
+        batch.left_out_starts = vec![start; batch.rays.len()];
+        let mut grad = vec![0f32; params.len()];
+        let losses = CpuStep.gradient(model, params, &set, &config, &batch, &mut grad).losses;
+        (losses, grad)
+    };
+    // The reference: the rendered samples' terms (a step regularising none) and each left-out
+    // sample's own, all normalised by the samples a step takes rendering every one.
+    let (rendered_only, _) = step(0, 0.5);
+    let rays: Vec<_> = batch.rays.iter().map(|&(v, p)| set.ray(v, p)).collect();
+    let samples = weighted_samples(model, params, &batch.level_weight, &rays, config.sampling, &batch.jitter, None);
+    let mut left_out = Vec::new();
+    for (ray, depths) in rays.iter().zip(&samples.left_out) {
+        depths.iter().for_each(|&d| left_out.extend(ray.at(d)));
+    }
+    let rendered: usize = samples.rendered.iter().map(Vec::len).sum();
+    let field = FieldSamples::evaluate(model, params, &batch.level_weight, left_out, batch.fd_step);
+    assert!(field.len() > 2 * rendered, "{} samples left out, {rendered} rendered", field.len());
+    let every_samples = (batch.rays.len() * (config.sampling.coarse + config.sampling.fine)) as f64;
+    let mut truth = [rendered_only[Term::Eikonal], rendered_only[Term::Curvature]];
+    for (g, &laplacian) in field.gradients.chunks_exact(3).zip(&field.laplacians) {
+        truth[0] += eikonal([g[0], g[1], g[2]]).0 as f64 / every_samples;
+        truth[1] += curvature(laplacian).0 as f64 / every_samples;
+    }
+    let (all, all_grad) = step(1, 0.5);
+    for (term, want) in [Term::Eikonal, Term::Curvature].into_iter().zip(truth) {
+        assert!((all[term] - want).abs() < 1e-4 * want, "{term:?}: {} against {want}", all[term]);
+        assert!(want > 2.0 * rendered_only[term], "{term:?}: the left-out samples' part is most of it");
+    }
+    // One in four from each of the four starts: on average the gradient of every sample.
+    let every = 4;
+    let mut mean = vec![0f64; params.len()];
+    for k in 0..every {
+        let (losses, grad) = step(every, (k as f32 + 0.5) / every as f32);
+        assert_eq!(losses[Term::Mask], all[Term::Mask], "the rendering is the same");
+        mean.iter_mut().zip(&grad).for_each(|(m, &g)| *m += g as f64 / every as f64);
+    }
+    let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
+    let difference = norm(&mut mean.iter().zip(&all_grad).map(|(m, &a)| m - a as f64));
+    let scale = norm(&mut all_grad.iter().map(|&a| a as f64));
+    let (_, one_start) = step(every, 0.5);
+    let spread = norm(&mut one_start.iter().zip(&all_grad).map(|(&o, &a)| (o - a) as f64));
+    println!("gradient: |mean over starts - every sample| {difference:.3e}, one start {spread:.3e}, of {scale:.3e}");
+    assert!(difference < 1e-4 * scale && spread > 20.0 * difference, "{difference} {spread} of {scale}");
 }
 
 #[test]
