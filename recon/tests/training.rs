@@ -65,6 +65,18 @@ fn spot_steps(iterations: u32) -> (TrainConfig, TrainingSet) {
     (config, set)
 }
 
+/// A trainer of `config` on `set` after 30 steps, its surface as sharp as after a few hundred
+/// iterations, so that a step leaves most samples out.
+fn sharpened(config: &TrainConfig, set: &TrainingSet) -> Trainer {
+    let mut trainer = Trainer::new(config.clone(), set.clone());
+    for _ in 0..30 {
+        trainer.step();
+    }
+    let variance = trainer.model.variance;
+    trainer.params[variance] = 200f32.ln() / rmvp_recon::model::VARIANCE_SCALE;
+    trainer
+}
+
 /// A batch of the configured number of rays that `rng` draws from the training set's pool at
 /// `trainer`'s iteration, read through `occupancy` (None: the field everywhere).
 fn random_batch(trainer: &Trainer, rng: &mut Rng, use_geometric: bool, occupancy: Option<&OccupancyGrid>) -> Batch {
@@ -326,13 +338,7 @@ fn the_curvature_term_sees_the_unseen_space_a_step_leaves_out_as_if_each_sample_
     use rmvp_recon::volume::weighted_samples;
     let (mut config, set) = spot_steps(200);
     config.sampling.regularised_left_out = 2;
-    let mut trainer = Trainer::new(config.clone(), set.clone());
-    for _ in 0..30 {
-        trainer.step();
-    }
-    // As sharp as after a few hundred iterations, so that most samples are left out.
-    let variance = trainer.model.variance;
-    trainer.params[variance] = 200f32.ln() / rmvp_recon::model::VARIANCE_SCALE;
+    let trainer = sharpened(&config, &set);
     // Without the occupancy grid the steps and the reference below take the same depths.
     let mut rng = Rng::for_pixel(7 + rmvp_testkit::test_seed(), 0, 0);
     let mut batch = random_batch(&trainer, &mut rng, false, None);
@@ -396,13 +402,7 @@ fn the_regularisers_see_every_sample_a_step_leaves_out_as_if_each_were_rendered(
     let (mut config, set) = spot_steps(200);
     // Without the draws behind what a ray sees: the terms on one in N of the samples left out.
     config.sampling.regularised_left_out = 0;
-    let mut trainer = Trainer::new(config.clone(), set.clone());
-    for _ in 0..30 {
-        trainer.step();
-    }
-    // As sharp as after a few hundred iterations, so that most samples are left out.
-    let variance = trainer.model.variance;
-    trainer.params[variance] = 200f32.ln() / rmvp_recon::model::VARIANCE_SCALE;
+    let trainer = sharpened(&config, &set);
     // Without the occupancy grid the steps and the reference below take the same depths.
     let mut rng = Rng::for_pixel(7 + rmvp_testkit::test_seed(), 0, 0);
     let batch = random_batch(&trainer, &mut rng, false, None);
