@@ -254,7 +254,15 @@ impl Step<'_> {
                 }
             }
             if !points.is_empty() {
-                grid.extend(self.smooth_unseen(points, &shares, &mut sums, &mut grad));
+                // The curvature term alone, outside the surface by the clearance.
+                let share = |field: &FieldSamples, i: usize| {
+                    if field.sdf[i] < REGULARISED_CLEARANCE {
+                        0.0
+                    } else {
+                        shares[i]
+                    }
+                };
+                grid.extend(self.regularise(points, 0.0, share, &mut sums, &mut grad));
             }
         }
         let every = config.sampling.regularise_left_out_every;
@@ -269,44 +277,36 @@ impl Step<'_> {
                 left_out.iter().skip(first).step_by(every).for_each(|&depth| points.extend(ray.at(depth)));
             }
             if !points.is_empty() {
-                grid.extend(self.regularise(points, every as f32, &mut sums, &mut grad));
+                let weight = every as f32;
+                grid.extend(self.regularise(points, weight, |_, _| weight, &mut sums, &mut grad));
             }
         }
         (grad, grid, sums)
     }
 
-    /// The Eikonal and curvature terms alone at `points` (n x 3), each point weighing
-    /// `weight` samples; adds the networks' gradient into `grad` and returns the hash grid's.
-    fn regularise(&self, points: Vec<f32>, weight: f32, sums: &mut ChunkSums, grad: &mut [f32]) -> GridGradient {
+    /// The regularisers alone at `points` (n x 3): the Eikonal term with each point weighing
+    /// `eikonal` samples (0: none) and the curvature term with point `i` weighing
+    /// `curvature(field, i)`; adds the networks' gradient into `grad` and returns the hash
+    /// grid's.
+    fn regularise(
+        &self,
+        points: Vec<f32>,
+        eikonal: f32,
+        curvature: impl Fn(&FieldSamples, usize) -> f32,
+        sums: &mut ChunkSums,
+        grad: &mut [f32],
+    ) -> GridGradient {
         let batch = self.batch;
         let field = FieldSamples::evaluate(self.model, self.params, &batch.level_weight, points, batch.fd_step);
-        let d_gradients = self.eikonal_gradients(&field, weight, sums);
-        let d_laplacians = self.curvature_gradients(&field, |_| weight, sums);
         let zeros = |n: usize| vec![0f32; n];
+        let d_gradients =
+            if eikonal > 0.0 { self.eikonal_gradients(&field, eikonal, sums) } else { zeros(field.gradients.len()) };
+        let d_laplacians = self.curvature_gradients(&field, |i| curvature(&field, i), sums);
         let d = FieldGrad {
             sdf: &zeros(field.sdf.len()),
             normals: &zeros(field.normals.len()),
             features: &zeros(field.features.len()),
             gradients: &d_gradients,
-            laplacians: &d_laplacians,
-        };
-        field.backward(self.model, self.params, &d, grad)
-    }
-
-    /// The curvature term at those of `points` (n x 3) that lie outside the surface by at
-    /// least [`REGULARISED_CLEARANCE`], each weighing as many samples as its `shares`; adds the
-    /// networks' gradient into `grad` and returns the hash grid's.
-    fn smooth_unseen(&self, points: Vec<f32>, shares: &[f32], sums: &mut ChunkSums, grad: &mut [f32]) -> GridGradient {
-        let batch = self.batch;
-        let field = FieldSamples::evaluate(self.model, self.params, &batch.level_weight, points, batch.fd_step);
-        let share = |i: usize| if field.sdf[i] < REGULARISED_CLEARANCE { 0.0 } else { shares[i] };
-        let d_laplacians = self.curvature_gradients(&field, share, sums);
-        let zeros = |n: usize| vec![0f32; n];
-        let d = FieldGrad {
-            sdf: &zeros(field.sdf.len()),
-            normals: &zeros(field.normals.len()),
-            features: &zeros(field.features.len()),
-            gradients: &zeros(field.gradients.len()),
             laplacians: &d_laplacians,
         };
         field.backward(self.model, self.params, &d, grad)
