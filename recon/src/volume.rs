@@ -67,7 +67,7 @@ pub fn sample_depths(
 /// changes a ray's composited values by less than `min_weight` per sample left out, and the
 /// gradient they would have had is as small. A ray may keep no sample (its opacity is then 0).
 /// The depths left out come back too, for the regularisers
-/// ([`crate::step::REGULARISED_LEFT_OUT`]).
+/// ([`crate::step::Batch::left_out_draws`], [`crate::step::Batch::left_out_starts`]).
 ///
 /// With `occupancy`, the SDF at a sample where the grid shows the surface to be far is the
 /// grid's, and a ray whose uniform samples all lie there is not up-sampled: nothing near it
