@@ -240,8 +240,8 @@ const POLARIZATION_CHANGE: f32 = 0.08;
 /// `E` scaled by a brightness `a = I.E / E.E` plus a chromatic distortion `|I - a E|`. The
 /// object is where `|I - E|` exceeds `options.difference` of the plate's brightness (plus 2 %
 /// of its white), except where the plate is only darkened (`a < 1`, distortion below
-/// [`SHADOW_CHROMA`]: the object's shadow); and wherever the linear polarization changed by
-/// more than [`POLARIZATION_CHANGE`] of S0 (a shadow darkens, it does not polarize: the
+/// `SHADOW_CHROMA`: the object's shadow); and wherever the linear polarization changed by
+/// more than `POLARIZATION_CHANGE` of S0 (a shadow darkens, it does not polarize: the
 /// object's silhouette, seen at grazing angles, is where it polarizes most). Cleaned.
 ///
 /// A dark part of the object (an unlit belly) over a bright part of the plate (the white

@@ -1,7 +1,7 @@
 //! The sensor's micro-polarizer and colour mosaics.
 //!
 //! IMX250MYR (colour): each 2x2 cell carries four polarizers,
-//! [`SENSOR_POLARIZER_CELL`](rmvp_dataset::polarization::SENSOR_POLARIZER_CELL) `[90 135; 45 0]`
+//! [`SENSOR_POLARIZER_CELL`] `[90 135; 45 0]`
 //! in the image frame (the vendor's names `[90 45; 135 0]` turn towards image *up*), and sits
 //! under one colour of an RGGB Bayer pattern of cells, so the pattern repeats every 4x4 pixels. Taking one polarizer position from every cell gives a
 //! half-resolution image that is an ordinary RGGB Bayer mosaic (GenICam `BayerRG`).

@@ -64,7 +64,7 @@ impl OccupancyGrid {
     }
 
     /// The SDF at `p` interpolated from the grid, where every corner of `p`'s cell lies
-    /// farther from the surface than [`FAR_DIAGONALS`] cell diagonals (the surface cannot be
+    /// farther from the surface than `FAR_DIAGONALS` cell diagonals (the surface cannot be
     /// near `p`); `None` where it may be.
     pub fn far_sdf(&self, p: [f32; 3]) -> Option<f32> {
         let far = FAR_DIAGONALS * CELL * 3f32.sqrt();

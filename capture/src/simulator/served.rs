@@ -5,7 +5,7 @@
 //! registers far above that (`0x000C1004`, `0x20000344`, ...). Each register is moved into the
 //! window: its `<Address>` rewritten, and for registers whose address a formula computes from a
 //! selector (`<pAddress>`), the formula's base constants moved, each base keeping a window of
-//! [`SELECTOR_WINDOW`] bytes for its selector's entries. The registers the fake camera streams
+//! `SELECTOR_WINDOW` bytes for its selector's entries. The registers the fake camera streams
 //! from (`Width`, `Height`, `PixelFormat` and `AcquisitionStart`'s values) land on the fake
 //! camera's own addresses, in its byte order. A GigE Vision description's bootstrap registers
 //! (below 0x1000) stay where the fake camera implements them. Nothing else changes: the served

@@ -21,8 +21,8 @@ const MAX_HEADER_BYTES: usize = 64 << 10;
 
 /// Read a Radiance HDR file as a 3-channel linear image. Its header is read first: the declared
 /// size is checked against [`input::max_pixels`], against what its bytes can hold
-/// ([`least_data_bytes`]) and against the decoding memory before the pixels are allocated, and
-/// a file longer than its scanlines can take ([`most_data_bytes`]) is refused unread.
+/// (`least_data_bytes`) and against the decoding memory before the pixels are allocated, and
+/// a file longer than its scanlines can take (`most_data_bytes`) is refused unread.
 pub fn read_hdr(path: &Path) -> Result<Image<f32>> {
     let bad = |what: String| Error::format(path, format!("not a readable Radiance HDR file: {what}"));
     let (head, file_len) = input::read_head(path, MAX_HEADER_BYTES as u64)?;

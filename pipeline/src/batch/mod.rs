@@ -1,7 +1,7 @@
 //! Batches of reconstructions and evaluations: datasets x variants x seeds from a plan file
 //! ([`plan`]), each task in its own folder and resumable ([`task`]), run on this machine
 //! ([`local`]) or as a Slurm job array through Slurm's own commands ([`slurm`]), watched
-//! ([`status`]) and tabulated ([`gather`], with a [`chart`]). See `docs/batch.md`.
+//! ([`status`]) and tabulated ([`gather`](mod@gather), with a [`chart`]). See `docs/batch.md`.
 //!
 //! ```text
 //! DIR/plan.json          the expanded plan: task i of the array is tasks[i]
