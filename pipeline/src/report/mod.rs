@@ -4,9 +4,9 @@
 //! by its distance to the truth where there is one, the training's losses and normal error
 //! plotted (SVG), the figures as tables (options, evaluation, times, residuals), and the
 //! pictures the run wrote (comparison, residuals, normal error maps); a batch's: a sortable row
-//! per task linking to its page; a dataset's ([`write_dataset_report`]): its datasheet, its truth in 3D and
-//! a grid of its views. Meshes above [`PAGE_TRIANGLES`] triangles are decimated for the page,
-//! which says so; the full mesh stays beside it.
+//! per task linking to its page; a dataset's ([`write_dataset_report`]): its datasheet, its
+//! truth in 3D and a grid of its views. Meshes above [`PAGE_TRIANGLES`] triangles are decimated
+//! for the page, which says so; the full mesh stays beside it.
 
 mod dataset;
 
