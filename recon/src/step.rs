@@ -45,10 +45,10 @@ pub struct Batch {
     /// term's expected gradient is the one it has over all of them.
     pub left_out_draws: Vec<f32>,
     /// For each ray, a number in `[0, 1)` that picks the first of the samples left out of the
-    /// step along it that the Eikonal and curvature terms still see; after it, one in
+    /// step along it that the curvature term still sees; after it, one in
     /// [`Sampling::regularise_left_out_every`](crate::volume::Sampling) (empty where every
     /// sample is rendered or none is regularised). Each stands for that many samples, so that
-    /// over the starts the terms' gradient is the one they have over all of them.
+    /// over the starts the term's gradient is the one it has over all of them.
     pub left_out_starts: Vec<f32>,
     /// For each ray, where the systematic sample of the views that the geometric loss compares
     /// with its surface point starts, in `[0, 1)` (empty where every view is compared:
@@ -269,8 +269,9 @@ impl Step<'_> {
         let starts = &self.batch.left_out_starts;
         if every > 0 && !starts.is_empty() {
             // One in `every` of each ray's samples left out, from its random start, stands for
-            // `every` of them: over the starts the Eikonal and curvature terms see every sample,
-            // as rendering every one does.
+            // `every` of them: over the starts the curvature term sees every sample, as
+            // rendering every one does. The field there, on either side of the surface, takes
+            // the curvature of the space around it; the Eikonal term there too rounds edges.
             let mut points = Vec::new();
             for ((ray, left_out), &u) in rays.iter().zip(&samples.left_out).zip(&starts[range]) {
                 let first = ((u * every as f32) as usize).min(every - 1);
@@ -278,7 +279,7 @@ impl Step<'_> {
             }
             if !points.is_empty() {
                 let weight = every as f32;
-                grid.extend(self.regularise(points, weight, |_, _| weight, &mut sums, &mut grad));
+                grid.extend(self.regularise(points, 0.0, |_, _| weight, &mut sums, &mut grad));
             }
         }
         (grad, grid, sums)

@@ -31,9 +31,9 @@ pub struct Sampling {
     #[serde(default)]
     pub regularised_left_out: usize,
     /// One in this many of the samples a step leaves out along each ray, from a random start
-    /// ([`crate::step::Batch::left_out_starts`]), still carries the Eikonal and curvature terms,
-    /// for this many samples: over the starts, the terms of every sample, as if each were
-    /// rendered; 0: none.
+    /// ([`crate::step::Batch::left_out_starts`]), still carries the curvature term, for this
+    /// many samples: over the starts, the term of every sample, as if each were rendered; 0:
+    /// none.
     #[serde(default)]
     pub regularise_left_out_every: usize,
 }
