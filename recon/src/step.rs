@@ -225,7 +225,7 @@ impl Step<'_> {
             }
         }
         // Eikonal and curvature on every sample's finite differences, each sample once.
-        let d_gradients = self.eikonal_gradients(&fwd.field, 1.0, &mut sums);
+        let d_gradients = self.eikonal_gradients(&fwd.field, &mut sums);
         let d_laplacians = self.curvature_gradients(&fwd.field, |_| 1.0, &mut sums);
         let mut grad = vec![0f32; model.network_params()];
         let mut grid = fwd.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
@@ -262,7 +262,7 @@ impl Step<'_> {
                         shares[i]
                     }
                 };
-                grid.extend(self.regularise(points, 0.0, share, &mut sums, &mut grad));
+                grid.extend(self.curvature_alone(points, share, &mut sums, &mut grad));
             }
         }
         let every = config.sampling.regularise_left_out_every;
@@ -279,51 +279,46 @@ impl Step<'_> {
             }
             if !points.is_empty() {
                 let weight = every as f32;
-                grid.extend(self.regularise(points, 0.0, |_, _| weight, &mut sums, &mut grad));
+                grid.extend(self.curvature_alone(points, |_, _| weight, &mut sums, &mut grad));
             }
         }
         (grad, grid, sums)
     }
 
-    /// The regularisers alone at `points` (n x 3): the Eikonal term with each point weighing
-    /// `eikonal` samples (0: none) and the curvature term with point `i` weighing
-    /// `curvature(field, i)`; adds the networks' gradient into `grad` and returns the hash
-    /// grid's.
-    fn regularise(
+    /// The curvature term alone at `points` (n x 3), point `i` weighing `share(field, i)`
+    /// samples; adds the networks' gradient into `grad` and returns the hash grid's.
+    fn curvature_alone(
         &self,
         points: Vec<f32>,
-        eikonal: f32,
-        curvature: impl Fn(&FieldSamples, usize) -> f32,
+        share: impl Fn(&FieldSamples, usize) -> f32,
         sums: &mut ChunkSums,
         grad: &mut [f32],
     ) -> GridGradient {
         let batch = self.batch;
         let field = FieldSamples::evaluate(self.model, self.params, &batch.level_weight, points, batch.fd_step);
         let zeros = |n: usize| vec![0f32; n];
-        let d_gradients =
-            if eikonal > 0.0 { self.eikonal_gradients(&field, eikonal, sums) } else { zeros(field.gradients.len()) };
-        let d_laplacians = self.curvature_gradients(&field, |i| curvature(&field, i), sums);
+        let d_laplacians = self.curvature_gradients(&field, |i| share(&field, i), sums);
         let d = FieldGrad {
             sdf: &zeros(field.sdf.len()),
             normals: &zeros(field.normals.len()),
             features: &zeros(field.features.len()),
-            gradients: &d_gradients,
+            gradients: &zeros(field.gradients.len()),
             laplacians: &d_laplacians,
         };
         field.backward(self.model, self.params, &d, grad)
     }
 
-    /// The Eikonal term on `field`'s finite-difference gradients, each point weighing `weight`
-    /// samples (of the step's every-sample count): its loss added to `sums`, and its gradient
-    /// with respect to the gradients (n x 3).
-    fn eikonal_gradients(&self, field: &FieldSamples, weight: f32, sums: &mut ChunkSums) -> Vec<f32> {
+    /// The Eikonal term on `field`'s finite-difference gradients, each point one sample (of the
+    /// step's every-sample count): its loss added to `sums`, and its gradient with respect to
+    /// the gradients (n x 3).
+    fn eikonal_gradients(&self, field: &FieldSamples, sums: &mut ChunkSums) -> Vec<f32> {
         let (w, samples) = (&self.config.weights, self.norm.samples);
         let mut d_gradients = vec![0f32; field.gradients.len()];
         for (g, d) in field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)) {
             let (loss, dg) = eikonal([g[0], g[1], g[2]]);
-            sums.losses[Term::Eikonal] += (loss * weight) as f64 / samples as f64;
+            sums.losses[Term::Eikonal] += loss as f64 / samples as f64;
             for k in 0..3 {
-                d[k] = w[Term::Eikonal] * dg[k] * weight / samples;
+                d[k] = w[Term::Eikonal] * dg[k] / samples;
             }
         }
         d_gradients
