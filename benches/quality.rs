@@ -35,7 +35,6 @@ use rmvp_align::{evaluate, SurfaceOptions};
 use rmvp_dataset::layout::read_scene;
 use rmvp_dataset::{Mesh, Scene, Split};
 use rmvp_pipeline::evaluation_set::{CaptureOptions, SCENES};
-use rmvp_recon::extract::Device;
 use rmvp_recon::options::{ReconOptions, RunControl};
 use rmvp_recon::presets::Preset;
 use rmvp_recon::reconstruct::{reconstruct, write_mesh, MESH};
@@ -348,7 +347,7 @@ fn main() {
                 trained = start.elapsed().as_secs_f64() - measuring;
                 if plan.curve.contains(&trainer.iteration) && trainer.iteration < trainer.config.iterations {
                     let at = out.join(format!("at-{}", trainer.iteration));
-                    write_mesh(trainer, &at, plan.mesh_resolution, Device::Cpu).expect("mesh during training");
+                    write_mesh(trainer, &at, &options).expect("mesh during training");
                     let seconds = start.elapsed().as_secs_f64() - measuring - trained;
                     let iteration = trainer.iteration;
                     measure(&mut results, &run, data, &at, iteration, (trained, seconds), plan.error_maps);

@@ -26,7 +26,7 @@ fn changed(field: &str) -> (&'static str, &'static str) {
     match field {
         "preset" => ("dense", "\"dense\""),
         "iters" => ("3", "3"),
-        "no_geometric" | "no_photometric" | "mesh_only" => ("", "true"),
+        "no_geometric" | "no_photometric" | "mesh_only" | "keep_unseen_parts" => ("", "true"),
         "batch" => ("48", "48"),
         "samples_per_step" => ("2000", "2000"),
         "coarse_samples" => ("20", "20"),

@@ -53,6 +53,19 @@ fn a_reconstructions_page_shows_the_mesh_in_3d_its_losses_and_figures_offline() 
     let again = ok(&["report", s(&out), "--scene", s(&scene)]);
     assert!(again.trim().ends_with("report.html") && page.is_file(), "{again}");
     assert!(std::fs::read_to_string(&page).unwrap().contains("\"frustums\":["));
+    // The parts of the mesh that no training view sees are said on the page; a broken record
+    // of them is named, once.
+    let parts = out.join("mesh_parts.json");
+    assert!(parts.is_file());
+    let record = r#"{"parts": 2, "pixels": 900, "unseen": [{"seen": 1, "crossed": 40, "faces": 120}], "kept": false}"#;
+    std::fs::write(&parts, record).unwrap();
+    ok(&["report", s(&out)]);
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(html.contains("1 part of 2 (120 triangles) that no training view sees"), "the unseen part");
+    std::fs::write(&parts, "{\"parts\": \"two\"}").unwrap();
+    let error = fails(&["report", s(&out)]);
+    assert_eq!(error.matches("mesh_parts.json").count(), 1, "{error}");
+    std::fs::remove_file(&parts).unwrap();
     // A broken log is named, once.
     std::fs::write(out.join("log.jsonl"), "{\"iteration\": 0\n").unwrap();
     let error = fails(&["report", s(&out)]);

@@ -14,7 +14,8 @@
 //! - [`config`]: a run's definition; [`step`]: a step's gradient behind [`step::StepCompute`];
 //!   [`train`]: the loop; [`presets`]: the presets' settings;
 //! - [`extract`]: marching tetrahedra (the SDF on the CPU or, with the `cuda` feature, by the
-//!   kernels of `cuda` on a GPU); [`options`]: `rmvp recon`'s options; [`checkpoint`]: save and
+//!   kernels of `cuda` on a GPU); [`unseen`]: the mesh's parts that no training view sees;
+//!   [`options`]: `rmvp recon`'s options; [`checkpoint`]: save and
 //!   resume bit for bit; [`output`]: normal maps and re-rendered Stokes where the surface is;
 //!   [`residuals`]: the model's Stokes against its input; [`tracking`]: the normal error against
 //!   a ground truth while training; [`reconstruct`]: a whole run in a folder.
@@ -47,6 +48,7 @@ pub mod step;
 pub mod trace;
 pub mod tracking;
 pub mod train;
+pub mod unseen;
 pub mod volume;
 
 pub use error::{Error, Result};

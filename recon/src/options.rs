@@ -147,6 +147,12 @@ pub struct ReconOptions {
     /// dataset's reference shape.
     #[cfg_attr(feature = "clap", arg(long))]
     pub mesh_only: bool,
+    /// Keep the mesh's connected parts that no training view sees (by default a part that is
+    /// the first surface at under a tenth of the training views' object pixels whose rays
+    /// cross it is left out: space the views never showed, such as a blob beneath an object
+    /// seen only from above).
+    #[cfg_attr(feature = "clap", arg(long))]
+    pub keep_unseen_parts: bool,
     /// Iterations between checkpoints.
     #[cfg_attr(feature = "clap", arg(long, default_value_t = 500))]
     pub checkpoint_every: u32,
@@ -181,6 +187,7 @@ impl Default for ReconOptions {
             mesh_res: 256,
             mesh_device: Device::Cpu,
             mesh_only: false,
+            keep_unseen_parts: false,
             checkpoint_every: 500,
         }
     }
@@ -235,7 +242,8 @@ impl ReconOptions {
     /// The options that change what is trained (all but the mesh's and the checkpoints'),
     /// where `self` (recorded) and `now` differ: `name: recorded -> now` each.
     pub fn training_differences(&self, now: &ReconOptions) -> Vec<String> {
-        const OUTPUT_ONLY: [&str; 4] = ["mesh_res", "mesh_device", "mesh_only", "checkpoint_every"];
+        const OUTPUT_ONLY: [&str; 5] =
+            ["mesh_res", "mesh_device", "mesh_only", "keep_unseen_parts", "checkpoint_every"];
         rmvp_dataset::io::json::differences(self, now)
             .into_iter()
             .filter(|(name, _)| !OUTPUT_ONLY.contains(&name.as_str()))

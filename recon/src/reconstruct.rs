@@ -10,6 +10,7 @@ use crate::output::{render_view, SurfaceGuide};
 use crate::residuals::view_residuals;
 use crate::tracking::{tracked_at, NormalTrack};
 use crate::train::{StepReport, Trainer};
+use crate::unseen::unseen_parts;
 use crate::{Error, Result};
 use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::json::{read_json, write_json};
@@ -36,6 +37,9 @@ pub const RESIDUALS_PICTURE: &str = "residuals.png";
 pub const RESIDUALS: &str = "residuals.json";
 /// The run's wall times ([`RunTimes`]).
 pub const TIMES: &str = "times.json";
+/// The mesh's connected parts and those that no training view sees
+/// ([`crate::unseen::UnseenParts`]).
+pub const MESH_PARTS: &str = "mesh_parts.json";
 
 /// A run's wall times (its folder's [`TIMES`]).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -136,9 +140,9 @@ pub fn reconstruct(
     }
     let trained = started.elapsed().as_secs_f64();
     if options.mesh_only {
-        write_mesh(&trainer, out, options.mesh_res, options.mesh_device)?;
+        write_mesh(&trainer, out, options)?;
     } else {
-        write_results(&trainer, scene, out, options.mesh_res, options.mesh_device)?;
+        write_results(&trainer, scene, out, options)?;
     }
     write_json(&out.join(TIMES), &times(started.elapsed().as_secs_f64() - trained))?;
     Ok(trainer)
@@ -160,17 +164,20 @@ fn no_cuda_support() -> Error {
     Error::Cuda("this build has no CUDA support (rmvp-recon's `cuda` feature)".into())
 }
 
-/// The extracted surface alone, `out/mesh.ply` (world frame), its SDF evaluated on `device`;
+/// The extracted surface alone, `out/mesh.ply` (world frame), at `options.mesh_res` with its
+/// SDF evaluated on `options.mesh_device`, without the parts no training view sees unless
+/// `options.keep_unseen_parts` ([`crate::unseen`]; which they were is `out/`[`MESH_PARTS`]);
 /// returns the mesh.
-pub fn write_mesh(trainer: &Trainer, out: &Path, mesh_resolution: usize, device: Device) -> Result<Mesh> {
+pub fn write_mesh(trainer: &Trainer, out: &Path, options: &ReconOptions) -> Result<Mesh> {
     let lw = trainer.level_weight();
     let (model, params, frame, fd_step) = (&trainer.model, &trainer.params, &trainer.set.frame, trainer.fd_step(&lw));
-    let mesh = match device {
-        Device::Cpu => extract_mesh(&CpuSdf::new(model, params, &lw), mesh_resolution, frame, fd_step)?,
+    let n = options.mesh_res;
+    let mesh = match options.mesh_device {
+        Device::Cpu => extract_mesh(&CpuSdf::new(model, params, &lw), n, frame, fd_step)?,
         #[cfg(feature = "cuda")]
         Device::Cuda => {
             let gpu = crate::cuda::CudaSdf::new(&model.field, params, &lw)?;
-            extract_mesh(&gpu, mesh_resolution, frame, fd_step)?
+            extract_mesh(&gpu, n, frame, fd_step)?
         }
         #[cfg(not(feature = "cuda"))]
         Device::Cuda => return Err(no_cuda_support()),
@@ -178,6 +185,9 @@ pub fn write_mesh(trainer: &Trainer, out: &Path, mesh_resolution: usize, device:
     if mesh.faces.is_empty() {
         return Err(Error::NoSurface);
     }
+    let (mesh, parts) = unseen_parts(mesh, &trainer.set, options.keep_unseen_parts);
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    write_json(&out.join(MESH_PARTS), &parts)?;
     mesh.write(&out.join(MESH))?;
     Ok(mesh)
 }
@@ -195,15 +205,9 @@ fn both_set(a: &Image<u8>, b: &Image<u8>) -> Image<u8> {
 
 /// Mesh, normal maps (every view), re-rendered Stokes (training views), [`COMPARISON`] and the
 /// residuals ([`RESIDUALS_PICTURE`], [`RESIDUALS`]).
-pub fn write_results(
-    trainer: &Trainer,
-    scene: &Scene,
-    out: &Path,
-    mesh_resolution: usize,
-    mesh_device: Device,
-) -> Result<()> {
-    let mesh = write_mesh(trainer, out, mesh_resolution, mesh_device)?;
-    let guide = SurfaceGuide::new(&mesh, &trainer.set.frame, mesh_resolution);
+pub fn write_results(trainer: &Trainer, scene: &Scene, out: &Path, options: &ReconOptions) -> Result<()> {
+    let mesh = write_mesh(trainer, out, options)?;
+    let guide = SurfaceGuide::new(&mesh, &trainer.set.frame, options.mesh_res);
     let (normals_dir, stokes_dir) = (out.join("normals"), out.join("stokes"));
     for d in [&normals_dir, &stokes_dir] {
         std::fs::create_dir_all(d).map_err(|e| Error::io(d, e))?;

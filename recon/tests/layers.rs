@@ -7,7 +7,7 @@ use std::collections::BTreeSet;
 use std::path::Path;
 
 /// The modules from the bottom up; a module may use the ones before it.
-const LAYERS: [&str; 24] = [
+const LAYERS: [&str; 25] = [
     "error",
     "engine",
     "pbrdf",
@@ -25,6 +25,7 @@ const LAYERS: [&str; 24] = [
     "train",
     "presets",
     "extract",
+    "unseen",
     "cuda",
     "options",
     "checkpoint",

@@ -2,9 +2,11 @@
 
 use super::progress;
 use anyhow::{Context, Result};
+use rmvp_dataset::io::json::read_json;
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::options::{ReconOptions, RunControl};
-use rmvp_recon::reconstruct::reconstruct;
+use rmvp_recon::reconstruct::{reconstruct, MESH_PARTS};
+use rmvp_recon::unseen::UnseenParts;
 use std::ops::ControlFlow;
 use std::path::PathBuf;
 
@@ -13,7 +15,7 @@ use std::path::PathBuf;
 pub struct Args {
     /// Scene folder (any layout) with Stokes images and masks.
     scene: PathBuf,
-    /// Output folder: mesh.ply, normals/, stokes/, comparison.png, residuals.png, residuals.json, log.jsonl, checkpoint.bin.
+    /// Output folder: mesh.ply, mesh_parts.json, normals/, stokes/, comparison.png, residuals.png, residuals.json, log.jsonl, checkpoint.bin.
     #[arg(short, long)]
     output: PathBuf,
     /// The reconstruction's options.
@@ -58,6 +60,10 @@ pub fn run(args: Args) -> Result<()> {
     if trainer.iteration < trainer.config.iterations {
         println!("stopped at iteration {} of {}; continue with --resume", trainer.iteration, trainer.config.iterations);
     } else {
+        let parts = args.output.join(MESH_PARTS);
+        if let Some(line) = read_json::<UnseenParts>(&parts, "the mesh's parts")?.summary() {
+            println!("{line}");
+        }
         let page = rmvp_pipeline::report::write_recon_report(&args.output, Some(&scene))?;
         println!("{} iterations; results in {}, the page {}", trainer.iteration, args.output.display(), page.display());
     }

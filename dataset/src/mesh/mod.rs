@@ -132,6 +132,84 @@ impl Mesh {
         }))
     }
 
+    /// Each face's connected part: faces that share a vertex, directly or through others, are
+    /// in one part; parts are numbered from 0 in the order of their first face. Returns the
+    /// part of each face and the number of parts.
+    pub fn face_parts(&self) -> (Vec<u32>, usize) {
+        let mut parent: Vec<u32> = (0..self.positions.len() as u32).collect();
+        fn root(parent: &mut [u32], mut i: u32) -> u32 {
+            while parent[i as usize] != i {
+                let up = parent[parent[i as usize] as usize];
+                parent[i as usize] = up;
+                i = up;
+            }
+            i
+        }
+        for face in &self.faces {
+            let a = root(&mut parent, face[0]);
+            for &v in &face[1..] {
+                let b = root(&mut parent, v);
+                parent[b.max(a) as usize] = b.min(a);
+            }
+        }
+        let mut number = vec![u32::MAX; self.positions.len()];
+        let mut parts = 0u32;
+        let of_face = self
+            .faces
+            .iter()
+            .map(|face| {
+                let r = root(&mut parent, face[0]) as usize;
+                if number[r] == u32::MAX {
+                    number[r] = parts;
+                    parts += 1;
+                }
+                number[r]
+            })
+            .collect();
+        (of_face, parts as usize)
+    }
+
+    /// The mesh with only the faces where `keep` is true, and only the vertices they use (with
+    /// their normals and properties), in their order.
+    pub fn with_faces(&self, keep: &[bool]) -> Mesh {
+        let mut index = vec![u32::MAX; self.positions.len()];
+        let mut used = Vec::new();
+        let faces = self
+            .faces
+            .iter()
+            .zip(keep)
+            .filter(|(_, &k)| k)
+            .map(|(face, _)| {
+                face.map(|v| {
+                    if index[v as usize] == u32::MAX {
+                        index[v as usize] = 0;
+                        used.push(v as usize);
+                    }
+                    v
+                })
+            })
+            .collect::<Vec<_>>();
+        used.sort_unstable();
+        for (new, &old) in used.iter().enumerate() {
+            index[old] = new as u32;
+        }
+        let pick = |values: &[[f32; 3]]| used.iter().map(|&i| values[i]).collect::<Vec<_>>();
+        Mesh {
+            positions: pick(&self.positions),
+            normals: self.normals.as_deref().map(pick),
+            faces: faces.into_iter().map(|f| f.map(|v| index[v as usize])).collect(),
+            vertex_properties: self
+                .vertex_properties
+                .iter()
+                .map(|p| VertexProperty {
+                    name: p.name.clone(),
+                    kind: p.kind,
+                    values: used.iter().map(|&i| p.values[i]).collect(),
+                })
+                .collect(),
+        }
+    }
+
     /// Check counts, indices and finiteness.
     pub fn validate(&self) -> Result<()> {
         let n = self.positions.len();
@@ -167,5 +245,58 @@ fn extension(path: &Path) -> String {
 pub(crate) fn push_fan(faces: &mut Vec<[u32; 3]>, polygon: &[u32]) {
     for k in 1..polygon.len().saturating_sub(1) {
         faces.push([polygon[0], polygon[k], polygon[k + 1]]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two tetrahedra apart and a triangle sharing a vertex with the second, with a normal and
+    /// a property per vertex equal to the vertex's index.
+    fn three_pieces() -> Mesh {
+        let tet = |o: f32| [[o, 0.0, 0.0], [o + 1.0, 0.0, 0.0], [o, 1.0, 0.0], [o, 0.0, 1.0]];
+        let mut positions: Vec<[f32; 3]> = tet(0.0).into_iter().chain(tet(5.0)).collect();
+        positions.extend([[9.0, 9.0, 9.0], [8.0, 9.0, 9.0], [20.0, 0.0, 0.0]]);
+        let tet_faces = |b: u32| [[b, b + 2, b + 1], [b, b + 1, b + 3], [b, b + 3, b + 2], [b + 1, b + 2, b + 3]];
+        let mut faces: Vec<[u32; 3]> = Vec::new();
+        faces.extend(tet_faces(4));
+        faces.push([7, 8, 9]);
+        faces.extend(tet_faces(0));
+        let n = positions.len();
+        Mesh {
+            normals: Some((0..n).map(|i| [i as f32, 0.0, 0.0]).collect()),
+            vertex_properties: vec![VertexProperty {
+                name: "index".into(),
+                kind: ScalarKind::U32,
+                values: (0..n).map(|i| i as f64).collect(),
+            }],
+            positions,
+            faces,
+        }
+    }
+
+    #[test]
+    fn faces_sharing_a_vertex_are_one_part_numbered_by_first_face() {
+        let (parts, count) = three_pieces().face_parts();
+        assert_eq!(count, 2);
+        assert_eq!(parts, [0, 0, 0, 0, 0, 1, 1, 1, 1]);
+    }
+
+    #[test]
+    fn keeping_faces_keeps_their_vertices_normals_and_properties_only() {
+        let mesh = three_pieces();
+        let keep: Vec<bool> = (0..mesh.faces.len()).map(|f| f == 4 || f >= 5).collect();
+        let kept = mesh.with_faces(&keep);
+        kept.validate().unwrap();
+        let old = [0, 1, 2, 3, 7, 8, 9];
+        assert_eq!(kept.positions, old.map(|i| mesh.positions[i]));
+        assert_eq!(kept.normals.as_deref().unwrap(), old.map(|i| [i as f32, 0.0, 0.0]));
+        assert_eq!(kept.vertex_properties[0].values, old.map(|i| i as f64));
+        // The faces name the same points as before.
+        let points = |m: &Mesh, f: &[u32; 3]| f.map(|v| m.positions[v as usize]);
+        let before: Vec<_> = mesh.faces.iter().zip(&keep).filter(|(_, &k)| k).map(|(f, _)| points(&mesh, f)).collect();
+        let after: Vec<_> = kept.faces.iter().map(|f| points(&kept, f)).collect();
+        assert_eq!(before, after);
     }
 }

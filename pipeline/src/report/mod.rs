@@ -18,7 +18,7 @@ use base64::Engine;
 use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::input::{read_bytes, read_text};
 use rmvp_dataset::{Mesh, Scene};
-use rmvp_recon::reconstruct::{COMPARISON, LOG, MESH, RESIDUALS, RESIDUALS_PICTURE, TIMES};
+use rmvp_recon::reconstruct::{COMPARISON, LOG, MESH, MESH_PARTS, RESIDUALS, RESIDUALS_PICTURE, TIMES};
 use serde_json::Value;
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -59,6 +59,14 @@ pub fn write_recon_report(dir: &Path, scene: Option<&Scene>) -> Result<PathBuf> 
             (truth, 2.0 * threshold.or_else(|| rmvp_align::surface::default_threshold(truth)).unwrap_or(0.01))
         });
         html += &mesh_section("surface", &mesh, scene, truth)?;
+        let parts_path = dir.join(MESH_PARTS);
+        if let Some(value) = read_json(&parts_path)? {
+            let parts: rmvp_recon::unseen::UnseenParts = serde_json::from_value(value)
+                .map_err(|e| rmvp_dataset::Error::format(&parts_path, format!("not the mesh's parts: {e}")))?;
+            if let Some(line) = parts.summary() {
+                let _ = write!(html, "<p>{}</p>", escape(&line));
+            }
+        }
     } else {
         html += "<p>No mesh yet: the run has not finished.</p>";
     }
