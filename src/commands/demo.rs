@@ -53,6 +53,6 @@ pub fn run(args: Args) -> Result<()> {
     println!("  session/           the capture session (raw frames, Stokes, AoP, DoP; poses.json, masks/)");
     println!("  simulated/         ground truth (NeRSP layout with gt/): noise-free Stokes, normals, mesh");
     println!("  dataset/           the dataset built from the session (nersp/, rmvp/, build.json)");
-    println!("  recon/             mesh.ply, normals/, stokes/, comparison.png (input | rendered S0, AoP, normals), residuals.png, log.jsonl");
+    println!("  recon/             mesh.ply, mesh_parts.json, normals/, stokes/, comparison.png (input | rendered S0, AoP, normals), residuals.png, log.jsonl");
     Ok(())
 }
