@@ -172,32 +172,19 @@ impl Mesh {
     /// The mesh with only the faces where `keep` is true, and only the vertices they use (with
     /// their normals and properties), in their order.
     pub fn with_faces(&self, keep: &[bool]) -> Mesh {
+        let kept = || self.faces.iter().zip(keep).filter(|(_, &k)| k).map(|(face, _)| face);
         let mut index = vec![u32::MAX; self.positions.len()];
-        let mut used = Vec::new();
-        let faces = self
-            .faces
-            .iter()
-            .zip(keep)
-            .filter(|(_, &k)| k)
-            .map(|(face, _)| {
-                face.map(|v| {
-                    if index[v as usize] == u32::MAX {
-                        index[v as usize] = 0;
-                        used.push(v as usize);
-                    }
-                    v
-                })
-            })
-            .collect::<Vec<_>>();
-        used.sort_unstable();
+        kept().flatten().for_each(|&v| index[v as usize] = 0);
+        let used: Vec<usize> = (0..index.len()).filter(|&i| index[i] == 0).collect();
         for (new, &old) in used.iter().enumerate() {
             index[old] = new as u32;
         }
+        let faces = kept().map(|f| f.map(|v| index[v as usize])).collect();
         let pick = |values: &[[f32; 3]]| used.iter().map(|&i| values[i]).collect::<Vec<_>>();
         Mesh {
             positions: pick(&self.positions),
             normals: self.normals.as_deref().map(pick),
-            faces: faces.into_iter().map(|f| f.map(|v| index[v as usize])).collect(),
+            faces,
             vertex_properties: self
                 .vertex_properties
                 .iter()
