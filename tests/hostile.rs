@@ -272,6 +272,7 @@ fn plans_with_impossible_values_loops_or_too_many_tasks_are_refused_at_plan_time
             3,
             "the tangent term's robust angle must be a number of degrees from 0 to 45",
         ),
+        ("options = { curvature_weight = -0.01 }\n", 3, "the curvature term's weight must be a number of at least 0"),
         (
             "options = { initial_radius = 1.5 }\n",
             3,

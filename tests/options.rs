@@ -39,6 +39,7 @@ fn changed(field: &str) -> (&'static str, &'static str) {
         "aop_reliability" => ("0.05", "0.05"),
         "tangent_robust_angle" => ("10", "10.0"),
         "tangent_views" => ("6", "6"),
+        "curvature_weight" => ("0.02", "0.02"),
         "initial_radius" => ("0.3", "0.3"),
         "learned_polarization" | "diffuse_transmission" | "tangent_azimuth_only" | "specular_tilt" => ("true", "true"),
         "downscale" => ("2", "2"),

@@ -9,6 +9,7 @@
 //! field is accepted everywhere under its name.
 
 use crate::extract::Device;
+use crate::losses::Term;
 use crate::presets::{self, Preset};
 use crate::train::TrainConfig;
 use crate::{Error, Result};
@@ -121,6 +122,12 @@ pub struct ReconOptions {
     /// cue nothing fits the specular network it is read from, and the lobe stays untilted.
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub specular_tilt: Option<bool>,
+    /// Weight of the curvature term, the SDF's mean absolute Laplacian over the samples
+    /// (Neuralangelo's smoothing against the hash grid's noise): more rounds a smooth object's
+    /// fine ripple away and a sharp one's creases with it; default: the preset's (0.005 in fast
+    /// and dense, 0 in paper).
+    #[cfg_attr(feature = "clap", arg(long, value_name = "WEIGHT"))]
+    pub curvature_weight: Option<f32>,
     /// Radius of the sphere the SDF starts from, in the scene's unit sphere; the surface grows
     /// out of it to meet the masks, so a concavity the masks do not show (a bowl, a cup) opens
     /// only where the start lies inside it; default: the preset's (0.2 in fast; NeuS's 0.5 in
@@ -181,6 +188,7 @@ impl Default for ReconOptions {
             tangent_robust_angle: None,
             tangent_views: None,
             specular_tilt: None,
+            curvature_weight: None,
             initial_radius: None,
             downscale: 1,
             seed: 0,
@@ -231,6 +239,8 @@ impl ReconOptions {
             "the AoP's reliability DoP must be a number of at least 0"
         } else if self.tangent_robust_angle.is_some_and(|a| !(a.is_finite() && (0.0..=45.0).contains(&a))) {
             "the tangent term's robust angle must be a number of degrees from 0 to 45"
+        } else if self.curvature_weight.is_some_and(|w| !(w.is_finite() && w >= 0.0)) {
+            "the curvature term's weight must be a number of at least 0"
         } else if self.initial_radius.is_some_and(|r| !(r.is_finite() && r > 0.0 && r < 1.0)) {
             "the initial sphere's radius must be a number between 0 and 1 (the unit sphere's)"
         } else {
@@ -320,9 +330,29 @@ impl ReconOptions {
         if let Some(on) = self.specular_tilt {
             config.model.specular_tilt = on;
         }
+        if let Some(weight) = self.curvature_weight {
+            config.weights[Term::Curvature] = weight;
+        }
         if let Some(radius) = self.initial_radius {
             config.model.initial_radius = radius;
         }
         config
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_curvature_weight_replaces_the_presets() {
+        for preset in [Preset::Fast, Preset::Dense, Preset::Paper] {
+            let options = ReconOptions { preset, curvature_weight: Some(0.02), ..Default::default() };
+            let config = options.config();
+            assert_eq!(config.weights[Term::Curvature], 0.02);
+            let preset_weights = ReconOptions { preset, ..Default::default() }.config().weights;
+            assert_ne!(preset_weights[Term::Curvature], 0.02);
+            assert_eq!(config.weights[Term::Eikonal], preset_weights[Term::Eikonal]);
+        }
     }
 }
