@@ -19,6 +19,7 @@ use rmvp_dataset::io::atomic::write_bytes_atomically;
 use rmvp_dataset::io::input::{read_bytes, read_text};
 use rmvp_dataset::{Mesh, Scene};
 use rmvp_recon::reconstruct::{COMPARISON, LOG, MESH, MESH_PARTS, RESIDUALS, RESIDUALS_PICTURE, TIMES};
+use rmvp_recon::unseen::UnseenParts;
 use serde_json::Value;
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -60,9 +61,8 @@ pub fn write_recon_report(dir: &Path, scene: Option<&Scene>) -> Result<PathBuf> 
         });
         html += &mesh_section("surface", &mesh, scene, truth)?;
         let parts_path = dir.join(MESH_PARTS);
-        if let Some(value) = read_json(&parts_path)? {
-            let parts: rmvp_recon::unseen::UnseenParts = serde_json::from_value(value)
-                .map_err(|e| rmvp_dataset::Error::format(&parts_path, format!("not the mesh's parts: {e}")))?;
+        if parts_path.exists() {
+            let parts: UnseenParts = rmvp_dataset::io::json::read_json(&parts_path, "the mesh's parts")?;
             if let Some(line) = parts.summary() {
                 let _ = write!(html, "<p>{}</p>", escape(&line));
             }
