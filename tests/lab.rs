@@ -162,7 +162,18 @@ fn a_lab_session_becomes_posed_masked_views() {
         "colmap poses after a similarity: rotation error at most {worst_deg:.4} deg, centres within {:.4} %",
         100.0 * worst_rel
     );
-    assert!(worst_deg < 0.3 && worst_rel < 0.005, "{worst_deg} deg, {worst_rel}");
+    // COLMAP 3.8's matching differs from run to run, even on one thread, so a failure here
+    // names what it needs to be understood: each view's error, the mapper's initial pair and
+    // the order it registered the others in.
+    if !(worst_deg < 0.3 && worst_rel < 0.005) {
+        let per_view: Vec<String> = (colmap.views.iter().zip(&errors.rotation_deg).zip(&errors.centre_distance))
+            .map(|((v, deg), d)| format!("{} {deg:.2} deg {:.2} %", v.name, 100.0 * d / distance))
+            .collect();
+        let log = std::fs::read_to_string(lab.join("colmap/mapper.log")).unwrap_or_default();
+        let steps: Vec<&str> =
+            log.lines().filter(|l| l.starts_with("Initializing") || l.starts_with("Registering")).collect();
+        panic!("{worst_deg} deg, {worst_rel}\nper view: {}\nmapper: {}", per_view.join("; "), steps.join("; "));
+    }
 
     // The release: the session posed by the board again (COLMAP's frame has no millimetres),
     // a laser scan of the object (the true mesh's vertices with 0.02 mm of noise, a metrology
