@@ -169,7 +169,8 @@ fn a_lab_session_becomes_posed_masked_views() {
         let per_view: Vec<String> = (colmap.views.iter().zip(&errors.rotation_deg).zip(&errors.centre_distance))
             .map(|((v, deg), d)| format!("{} {deg:.2} deg {:.2} %", v.name, 100.0 * d / distance))
             .collect();
-        let log = std::fs::read_to_string(lab.join("colmap/mapper.log")).unwrap_or_default();
+        let log =
+            std::fs::read_to_string(lab.join(rmvp_calib::poses::COLMAP_FOLDER).join("mapper.log")).unwrap_or_default();
         let steps: Vec<&str> =
             log.lines().filter(|l| l.starts_with("Initializing") || l.starts_with("Registering")).collect();
         panic!("{worst_deg} deg, {worst_rel}\nper view: {}\nmapper: {}", per_view.join("; "), steps.join("; "));
