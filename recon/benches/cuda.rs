@@ -52,7 +52,7 @@ fn trained(scene: &str, iterations: u32) -> Subject {
     }
     println!("trained {iterations} iterations in {:.1} s", seconds(start));
     let level_weight = trainer.level_weight();
-    let fd_step = trainer.fd_step(&level_weight);
+    let fd_step = trainer.output_fd_step(&level_weight);
     Subject { model: trainer.model, params: trainer.params, level_weight, frame: trainer.set.frame, fd_step }
 }
 

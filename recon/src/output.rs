@@ -69,7 +69,7 @@ pub struct RenderedView {
 pub fn render_view(trainer: &Trainer, camera: &Camera, guide: &SurfaceGuide, with_stokes: bool) -> RenderedView {
     let (model, params, frame) = (&trainer.model, &trainer.params[..], &trainer.set.frame);
     let level_weight = trainer.level_weight();
-    let fd_step = trainer.fd_step(&level_weight);
+    let fd_step = trainer.output_fd_step(&level_weight);
     let (w, h) = (camera.width as usize, camera.height as usize);
     let on_mesh: Vec<(usize, Ray, f32)> = (0..w * h)
         .into_par_iter()

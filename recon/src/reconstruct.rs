@@ -170,7 +170,8 @@ fn no_cuda_support() -> Error {
 /// returns the mesh.
 pub fn write_mesh(trainer: &Trainer, out: &Path, options: &ReconOptions) -> Result<Mesh> {
     let lw = trainer.level_weight();
-    let (model, params, frame, fd_step) = (&trainer.model, &trainer.params, &trainer.set.frame, trainer.fd_step(&lw));
+    let (model, params, frame, fd_step) =
+        (&trainer.model, &trainer.params, &trainer.set.frame, trainer.output_fd_step(&lw));
     let n = options.mesh_res;
     let mesh = match options.mesh_device {
         Device::Cpu => extract_mesh(&CpuSdf::new(model, params, &lw), n, frame, fd_step)?,

@@ -91,7 +91,7 @@ impl NormalTrack {
     pub fn normal_error_deg(&self, trainer: &Trainer) -> Option<f64> {
         let (model, params) = (&trainer.model, &trainer.params[..]);
         let level_weight = trainer.level_weight();
-        let fd_step = trainer.fd_step(&level_weight);
+        let fd_step = trainer.output_fd_step(&level_weight);
         let angles: Vec<(usize, f64)> = self
             .pixels
             .par_chunks(CHUNK)

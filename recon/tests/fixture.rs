@@ -34,7 +34,7 @@ fn normal_mae(seed: u64, iterations: u32) -> (f64, f64) {
     }
     let lw = trainer.level_weight();
     let sdf = CpuSdf::new(&trainer.model, &trainer.params, &lw);
-    let mesh = extract_mesh(&sdf, 128, &trainer.set.frame, trainer.fd_step(&lw)).unwrap();
+    let mesh = extract_mesh(&sdf, 128, &trainer.set.frame, trainer.output_fd_step(&lw)).unwrap();
     let mae = normal_errors(&mesh, &scene).unwrap().mean_mae_deg;
     let tracked = NormalTrack::new(&scene, &trainer.set.frame).unwrap().normal_error_deg(&trainer).unwrap();
     println!("seed {seed}: normal MAE {mae:.2} deg, tracked during training {tracked:.2}");
