@@ -114,13 +114,9 @@ fn analytic_sphere_converges_to_the_sphere() {
         assert!(r.event.is_none(), "{r:?}");
     }
     let lw = trainer.level_weight();
-    let mesh = extract_mesh(
-        &CpuSdf::new(&trainer.model, &trainer.params, &lw),
-        64,
-        &trainer.set.frame,
-        trainer.output_fd_step(&lw),
-    )
-    .unwrap();
+    let sdf = CpuSdf::new(&trainer.model, &trainer.params, &lw);
+    let mesh_at = |cells| extract_mesh(&sdf, cells, &trainer.set.frame, trainer.output_fd_step(&lw)).unwrap();
+    let mesh = mesh_at(64);
     let radii: Vec<f32> = mesh.positions.iter().map(|p| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt()).collect();
     let mean_error = radii.iter().map(|r| (r - RADIUS).abs()).sum::<f32>() / radii.len() as f32;
     let worst = radii.iter().map(|r| (r - RADIUS).abs()).fold(0.0, f32::max);
@@ -136,13 +132,7 @@ fn analytic_sphere_converges_to_the_sphere() {
     let view = &scene.views[1];
     let guide = SurfaceGuide::new(&mesh, &trainer.set.frame, 64);
     let out = render_outputs(&trainer, &view.camera, &guide, true);
-    let fine = extract_mesh(
-        &CpuSdf::new(&trainer.model, &trainer.params, &lw),
-        160,
-        &trainer.set.frame,
-        trainer.output_fd_step(&lw),
-    )
-    .unwrap();
+    let fine = mesh_at(160);
     let learned = Object::new(&fine, Interface::Dielectric(1.5), Lobes::Plastic).unwrap();
     let truth = geometry_maps(&learned, &view.camera);
     let (mut inter, mut union, mut angles) = (0, 0, Vec::new());
