@@ -164,18 +164,14 @@ impl Trainer {
     /// Finite-difference step of the normals in training: the finest active grid cell
     /// (Neuralangelo), at least 0.002; a fixed 0.005 for the MLP.
     pub fn fd_step(&self, level_weight: &[f32]) -> f32 {
-        self.step_of_cells(level_weight, 1.0)
+        normal_step(self.model.field.finest_active(level_weight), 1.0)
     }
 
     /// Finite-difference step of the normals the outputs show (the mesh's vertex normals, the
     /// views' normal maps, the normal error tracked in training): [`OUTPUT_NORMAL_CELLS`] of
     /// the finest active grid cells, at least 0.002; a fixed 0.005 for the MLP.
     pub fn output_fd_step(&self, level_weight: &[f32]) -> f32 {
-        self.step_of_cells(level_weight, OUTPUT_NORMAL_CELLS)
-    }
-
-    fn step_of_cells(&self, level_weight: &[f32], cells: f32) -> f32 {
-        normal_step(self.model.field.finest_active(level_weight), cells)
+        normal_step(self.model.field.finest_active(level_weight), OUTPUT_NORMAL_CELLS)
     }
 
     /// Whether the current iteration is in the diffuse-only warm-up.
