@@ -18,7 +18,7 @@ mkdir -p "$out"
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 # package, test binary, test name filter, the pattern of the lines that carry its figures
 runs=(
-  "rmvp-recon training analytic_sphere_converges sphere:|outputs:|surface shading"
+  "rmvp-recon training analytic_sphere_converges sphere:|outputs:|normal maps:|surface shading"
   "rmvp-recon training the_curvature_term_sees curvature:"
   "rmvp-recon fixture the_fast_preset seed [0-9]+:"
   "rmvp-align icp known_similarity|far_starts|cropped_noisy alignment error"

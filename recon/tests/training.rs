@@ -12,7 +12,8 @@ use rmvp_recon::occupancy::OccupancyGrid;
 use rmvp_recon::options::{ReconOptions, RunControl};
 use rmvp_recon::output::{render_view as render_outputs, SurfaceGuide};
 use rmvp_recon::presets::{self, Preset};
-use rmvp_recon::reconstruct::reconstruct;
+use rmvp_recon::reconstruct::{reconstruct, write_mesh};
+use rmvp_recon::samples::FieldSamples;
 use rmvp_recon::step::{Batch, CpuStep, StepCompute};
 use rmvp_recon::train::{StepEvent, TrainConfig, Trainer};
 use rmvp_recon::volume::{sample_depths, Forward};
@@ -149,14 +150,65 @@ fn analytic_sphere_converges_to_the_sphere() {
     let (iou, median) = (inter as f32 / union as f32, angles[angles.len() / 2]);
     println!("outputs: silhouette IoU {iou:.3}, normal median error {median:.2} deg over {} pixels", angles.len());
     assert!(iou > 0.98 && median < 2.0, "IoU {iou}, median {median} deg");
-    let surface = out.stokes.as_ref().unwrap();
     let hits: Vec<usize> = (0..out.mask.data().len()).filter(|&k| out.mask.data()[k] > 127).collect();
     let frame = &trainer.set.frame;
     let w = view.camera.width;
     let rays: Vec<_> =
         hits.iter().map(|&k| frame.pixel_ray(&view.camera, k as u32 % w, k as u32 / w).unwrap()).collect();
-    let config = &trainer.config;
+
+    // The normal maps are the field's gradient over the outputs' step, not the training's: at
+    // each pixel's own zero crossing (found here by bisection), the rendered normal is the one
+    // at the outputs' step to within the secant's placement, and stands apart from the one at
+    // the training step by the finest cells' ripple.
     let (model, params) = (&trainer.model, &trainer.params);
+    let sdf_at = |points: &[f32]| model.field.sdf(params, points, &lw);
+    let crossings: Vec<f32> = rays
+        .iter()
+        .flat_map(|ray| {
+            let steps = 512;
+            let t = |i: usize| ray.near + (ray.far - ray.near) * i as f32 / steps as f32;
+            let along: Vec<f32> = (0..=steps).flat_map(|i| ray.at(t(i))).collect();
+            let first = sdf_at(&along).windows(2).position(|s| s[0] > 0.0 && s[1] <= 0.0).unwrap();
+            let (mut a, mut b) = (t(first), t(first + 1));
+            for _ in 0..30 {
+                let mid = 0.5 * (a + b);
+                if sdf_at(&ray.at(mid))[0] > 0.0 {
+                    a = mid;
+                } else {
+                    b = mid;
+                }
+            }
+            ray.at(0.5 * (a + b))
+        })
+        .collect();
+    let median_angle_to = |step: f32| {
+        let field = FieldSamples::infer(model, params, &lw, crossings.clone(), step);
+        let mut angles: Vec<f32> = hits
+            .iter()
+            .zip(field.normals.chunks_exact(3))
+            .map(|(&k, n)| {
+                let world = frame.dir_to_world([n[0], n[1], n[2]]);
+                let r = &out.normals.data()[3 * k..3 * k + 3];
+                let cos = world.x * r[0] as f64 + world.y * r[1] as f64 + world.z * r[2] as f64;
+                cos.clamp(-1.0, 1.0).acos().to_degrees() as f32
+            })
+            .collect();
+        angles.sort_by(f32::total_cmp);
+        angles[angles.len() / 2]
+    };
+    let (output_step, training_step) = (trainer.output_fd_step(&lw), trainer.fd_step(&lw));
+    let (to_output, to_training) = (median_angle_to(output_step), median_angle_to(training_step));
+    println!("normal maps: median {to_output:.3} deg from the outputs' step's normals, {to_training:.3} from the training step's");
+    assert!(output_step > training_step && to_output < 0.5 * to_training, "{to_output} against {to_training} deg");
+    // The written mesh's vertex normals too.
+    let options = ReconOptions { mesh_res: 64, ..ReconOptions::default() };
+    let dir = tempfile::tempdir().unwrap();
+    let written = write_mesh(&trainer, dir.path(), &options).unwrap();
+    assert!(written.positions == mesh.positions && written.normals == mesh.normals);
+    let at_training_step = extract_mesh(&sdf, 64, frame, training_step).unwrap();
+    assert!(at_training_step.normals != mesh.normals);
+    let surface = out.stokes.as_ref().unwrap();
+    let config = &trainer.config;
     let depths = sample_depths(model, params, &lw, &rays, config.sampling, &vec![0.5; rays.len()]);
     let full = Forward::run(model, params, &lw, &rays, &depths, trainer.fd_step(&lw), false);
     let mut differences: Vec<f32> = hits
