@@ -34,6 +34,7 @@ fn changed(field: &str) -> (&'static str, &'static str) {
         "min_sample_weight" => ("0.001", "0.001"),
         "regularised_left_out" => ("2", "2"),
         "regularise_left_out_every" => ("16", "16"),
+        "regularise_inside_every" => ("4", "4"),
         "margin" => ("5", "5"),
         "grid_level_decay" => ("0.8", "0.8"),
         "aop_reliability" => ("0.05", "0.05"),

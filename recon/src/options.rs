@@ -73,6 +73,12 @@ pub struct ReconOptions {
     /// degrees); 0: none (default: every preset's).
     #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
     pub regularise_left_out_every: Option<usize>,
+    /// Of the samples a step leaves out along each ray (`--min-sample-weight`), one in N, from
+    /// a random start, still carries the Eikonal and curvature terms, for N of them, where it
+    /// lies 0.05 or more inside the surface: the object's inside keeps the regularisers that
+    /// rendering every sample gives it; 0: none (default: the preset's).
+    #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
+    pub regularise_inside_every: Option<usize>,
     /// Dilation of the masks that object rays are drawn from, pixels (default: the preset's, 8).
     #[cfg_attr(feature = "clap", arg(long))]
     pub margin: Option<usize>,
@@ -179,6 +185,7 @@ impl Default for ReconOptions {
             min_sample_weight: None,
             regularised_left_out: None,
             regularise_left_out_every: None,
+            regularise_inside_every: None,
             margin: None,
             grid_level_decay: None,
             learned_polarization: None,
@@ -302,6 +309,9 @@ impl ReconOptions {
         }
         if let Some(n) = self.regularise_left_out_every {
             config.sampling.regularise_left_out_every = n;
+        }
+        if let Some(n) = self.regularise_inside_every {
+            config.sampling.regularise_inside_every = n;
         }
         if let Some(m) = self.margin {
             config.margin = m;

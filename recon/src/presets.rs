@@ -129,6 +129,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
                 min_weight: 0.0,
                 regularised_left_out: 0,
                 regularise_left_out_every: 0,
+                regularise_inside_every: 0,
             },
             AdamConfig {
                 lr_network: 5e-4,
@@ -150,6 +151,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
                 // 0.0019, 533 -> 588 s on two threads; docs/benchmarks.md).
                 regularised_left_out: if preset == Preset::Fast { REGULARISED_LEFT_OUT } else { 0 },
                 regularise_left_out_every: 0,
+                regularise_inside_every: 0,
             },
             AdamConfig {
                 lr_network: 2e-3,

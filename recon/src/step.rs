@@ -45,9 +45,10 @@ pub struct Batch {
     /// term's expected gradient is the one it has over all of them.
     pub left_out_draws: Vec<f32>,
     /// For each ray, a number in `[0, 1)` that picks the first of the samples left out of the
-    /// step along it that the curvature term still sees; after it, one in
-    /// [`Sampling::regularise_left_out_every`](crate::volume::Sampling) (empty where every
-    /// sample is rendered or none is regularised). Each stands for that many samples, so that
+    /// step along it that the regularisers still see; after it, one in
+    /// [`Sampling::regularise_left_out_every`](crate::volume::Sampling) or
+    /// [`Sampling::regularise_inside_every`](crate::volume::Sampling) (empty where every
+    /// sample is rendered or none is regularised so). Each stands for that many samples, so that
     /// over the starts the term's gradient is the one it has over all of them.
     pub left_out_starts: Vec<f32>,
     /// For each ray, where the systematic sample of the views that the geometric loss compares
@@ -88,9 +89,10 @@ pub struct CpuStep;
 /// Rays per chunk of a batch; chunks run in parallel and are summed in order.
 const CHUNK_RAYS: usize = 32;
 
-/// The least SDF (unit sphere) at which a sample drawn from those a step leaves out
-/// ([`Batch::left_out_draws`]) carries the curvature term: the surfaces' neighbourhoods and the
-/// objects' insides are left to the samples rendered.
+/// The least distance from the surface (unit sphere) at which a sample a step leaves out is
+/// regularised: outside it, those drawn behind what a ray renders ([`Batch::left_out_draws`]);
+/// inside it, one in [`Sampling::regularise_inside_every`](crate::volume::Sampling). The
+/// surfaces' neighbourhoods are left to the samples rendered.
 pub const REGULARISED_CLEARANCE: f32 = 0.05;
 
 /// The losses' normalisers: rays, rays inside the masks, samples a step takes when it renders
@@ -99,6 +101,15 @@ struct Norms {
     rays: f32,
     masked: f32,
     samples: f32,
+}
+
+/// Where the samples a step leaves out, one in N from a random start, are regularised.
+#[derive(Clone, Copy, PartialEq)]
+enum Regularised {
+    /// Everywhere: the curvature term.
+    Everywhere,
+    /// Inside the surface by [`REGULARISED_CLEARANCE`] or more: the Eikonal and curvature terms.
+    DeepInside,
 }
 
 #[derive(Default)]
@@ -225,7 +236,7 @@ impl Step<'_> {
             }
         }
         // Eikonal and curvature on every sample's finite differences, each sample once.
-        let d_gradients = self.eikonal_gradients(&fwd.field, &mut sums);
+        let d_gradients = self.eikonal_gradients(&fwd.field, |_| 1.0, &mut sums);
         let d_laplacians = self.curvature_gradients(&fwd.field, |_| 1.0, &mut sums);
         let mut grad = vec![0f32; model.network_params()];
         let mut grid = fwd.backward(model, params, &grads, &d_gradients, &d_laplacians, &mut grad);
@@ -262,63 +273,86 @@ impl Step<'_> {
                         shares[i]
                     }
                 };
-                grid.extend(self.curvature_alone(points, share, &mut sums, &mut grad));
+                grid.extend(self.regularise(points, share, false, &mut sums, &mut grad));
             }
         }
-        let every = config.sampling.regularise_left_out_every;
         let starts = &self.batch.left_out_starts;
-        if every > 0 && !starts.is_empty() {
+        let systematic = [
+            (config.sampling.regularise_left_out_every, Regularised::Everywhere),
+            (config.sampling.regularise_inside_every, Regularised::DeepInside),
+        ];
+        for (every, region) in systematic {
+            if every == 0 || starts.is_empty() {
+                continue;
+            }
             // One in `every` of each ray's samples left out, from its random start, stands for
-            // `every` of them: over the starts the curvature term sees every sample, as
-            // rendering every one does. The field there, on either side of the surface, takes
-            // the curvature of the space around it; the Eikonal term there too rounds edges.
+            // `every` of them: over the starts the terms see every sample of the region, as
+            // rendering every one does. Everywhere: the curvature term, so that the field on
+            // either side of the surface takes the curvature of the space around it (the
+            // Eikonal term there too rounds edges). Deep inside: both terms, which the samples
+            // rendered (near the surface and before it) leave the object's inside without.
             let mut points = Vec::new();
-            for ((ray, left_out), &u) in rays.iter().zip(&samples.left_out).zip(&starts[range]) {
+            for ((ray, left_out), &u) in rays.iter().zip(&samples.left_out).zip(&starts[range.clone()]) {
                 let first = ((u * every as f32) as usize).min(every - 1);
                 left_out.iter().skip(first).step_by(every).for_each(|&depth| points.extend(ray.at(depth)));
             }
-            if !points.is_empty() {
-                let weight = every as f32;
-                grid.extend(self.curvature_alone(points, |_, _| weight, &mut sums, &mut grad));
+            if points.is_empty() {
+                continue;
             }
+            let weight = every as f32;
+            let share = |field: &FieldSamples, i: usize| match region {
+                Regularised::Everywhere => weight,
+                Regularised::DeepInside if field.sdf[i] <= -REGULARISED_CLEARANCE => weight,
+                Regularised::DeepInside => 0.0,
+            };
+            let with_eikonal = region == Regularised::DeepInside;
+            grid.extend(self.regularise(points, share, with_eikonal, &mut sums, &mut grad));
         }
         (grad, grid, sums)
     }
 
-    /// The curvature term alone at `points` (n x 3), point `i` weighing `share(field, i)`
-    /// samples; adds the networks' gradient into `grad` and returns the hash grid's.
-    fn curvature_alone(
+    /// The regularisers alone at `points` (n x 3), point `i` weighing `share(field, i)`
+    /// samples: the curvature term, and the Eikonal term too where `with_eikonal`; adds the
+    /// networks' gradient into `grad` and returns the hash grid's.
+    fn regularise(
         &self,
         points: Vec<f32>,
         share: impl Fn(&FieldSamples, usize) -> f32,
+        with_eikonal: bool,
         sums: &mut ChunkSums,
         grad: &mut [f32],
     ) -> GridGradient {
         let batch = self.batch;
         let field = FieldSamples::evaluate(self.model, self.params, &batch.level_weight, points, batch.fd_step);
         let zeros = |n: usize| vec![0f32; n];
+        let d_gradients = if with_eikonal {
+            self.eikonal_gradients(&field, |i| share(&field, i), sums)
+        } else {
+            zeros(field.gradients.len())
+        };
         let d_laplacians = self.curvature_gradients(&field, |i| share(&field, i), sums);
         let d = FieldGrad {
             sdf: &zeros(field.sdf.len()),
             normals: &zeros(field.normals.len()),
             features: &zeros(field.features.len()),
-            gradients: &zeros(field.gradients.len()),
+            gradients: &d_gradients,
             laplacians: &d_laplacians,
         };
         field.backward(self.model, self.params, &d, grad)
     }
 
-    /// The Eikonal term on `field`'s finite-difference gradients, each point one sample (of the
-    /// step's every-sample count): its loss added to `sums`, and its gradient with respect to
-    /// the gradients (n x 3).
-    fn eikonal_gradients(&self, field: &FieldSamples, sums: &mut ChunkSums) -> Vec<f32> {
+    /// The Eikonal term on `field`'s finite-difference gradients, point `i` weighing
+    /// `share(i)` samples (of the step's every-sample count): its loss added to `sums`, and its
+    /// gradient with respect to the gradients (n x 3).
+    fn eikonal_gradients(&self, field: &FieldSamples, share: impl Fn(usize) -> f32, sums: &mut ChunkSums) -> Vec<f32> {
         let (w, samples) = (&self.config.weights, self.norm.samples);
         let mut d_gradients = vec![0f32; field.gradients.len()];
-        for (g, d) in field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)) {
+        for (i, (g, d)) in field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)).enumerate() {
             let (loss, dg) = eikonal([g[0], g[1], g[2]]);
-            sums.losses[Term::Eikonal] += loss as f64 / samples as f64;
+            let share = share(i);
+            sums.losses[Term::Eikonal] += (loss * share) as f64 / samples as f64;
             for k in 0..3 {
-                d[k] = w[Term::Eikonal] * dg[k] / samples;
+                d[k] = w[Term::Eikonal] * dg[k] * share / samples;
             }
         }
         d_gradients

@@ -208,8 +208,11 @@ impl Trainer {
         let sampling = self.config.sampling;
         let draws = if sampling.skips_empty_space() { sampling.regularised_left_out * batch.len() } else { 0 };
         let left_out_draws = (0..draws).map(|_| rng.next_f32()).collect();
-        let regularised = sampling.skips_empty_space() && sampling.regularise_left_out_every > 0;
-        let left_out_starts = if regularised { batch.iter().map(|_| rng.next_f32()).collect() } else { Vec::new() };
+        let left_out_starts = if sampling.regularises_left_out_systematically() {
+            batch.iter().map(|_| rng.next_f32()).collect()
+        } else {
+            Vec::new()
+        };
         let views = self.config.tangent_views;
         let samples_views = use_geometric && views > 0 && views < set.views.len();
         let tangent_view_draws =

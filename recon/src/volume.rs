@@ -36,6 +36,12 @@ pub struct Sampling {
     /// none.
     #[serde(default)]
     pub regularise_left_out_every: usize,
+    /// One in this many of the samples a step leaves out along each ray, from the same random
+    /// start, still carries the Eikonal and curvature terms, for this many samples, where it
+    /// lies inside the surface by at least [`crate::step::REGULARISED_CLEARANCE`]: over the
+    /// starts, the terms of every sample deep in the object, as if each were rendered; 0: none.
+    #[serde(default)]
+    pub regularise_inside_every: usize,
 }
 
 impl Sampling {
@@ -43,6 +49,12 @@ impl Sampling {
     /// through an occupancy grid (`min_weight` above 0).
     pub fn skips_empty_space(&self) -> bool {
         self.min_weight > 0.0
+    }
+
+    /// Whether a step regularises one in N of the samples it leaves out along each ray, from a
+    /// random start ([`crate::step::Batch::left_out_starts`]).
+    pub fn regularises_left_out_systematically(&self) -> bool {
+        self.skips_empty_space() && (self.regularise_left_out_every > 0 || self.regularise_inside_every > 0)
     }
 }
 

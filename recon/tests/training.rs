@@ -444,13 +444,35 @@ fn the_curvature_term_sees_the_unseen_space_a_step_leaves_out_as_if_each_sample_
     assert!(spread < 0.5 * truth, "spread {spread} of {truth}");
 }
 
+/// Where a test regularises one in N of the samples a step leaves out.
+#[derive(Clone, Copy, PartialEq)]
+enum LeftOut {
+    /// Every sample: the curvature term (`Sampling::regularise_left_out_every`).
+    Everywhere,
+    /// The samples inside the surface by the clearance: the Eikonal and curvature terms
+    /// (`Sampling::regularise_inside_every`).
+    DeepInside,
+}
+
 #[test]
 fn the_curvature_term_sees_every_sample_a_step_leaves_out_as_if_each_were_rendered() {
-    use rmvp_recon::losses::{curvature, Term};
+    regularises_left_out_samples_as_if_each_were_rendered(LeftOut::Everywhere);
+}
+
+#[test]
+fn both_regularisers_see_every_sample_a_step_leaves_deep_inside_as_if_each_were_rendered() {
+    regularises_left_out_samples_as_if_each_were_rendered(LeftOut::DeepInside);
+}
+
+/// One in N of the samples a step leaves out, from each of N starts, regularised for N: on
+/// average the losses and gradient of every sample of `region` rendered.
+fn regularises_left_out_samples_as_if_each_were_rendered(region: LeftOut) {
+    use rmvp_recon::losses::{curvature, eikonal, Term};
     use rmvp_recon::samples::FieldSamples;
+    use rmvp_recon::step::REGULARISED_CLEARANCE;
     use rmvp_recon::volume::weighted_samples;
     let (mut config, set) = spot_steps(200);
-    // Without the draws behind what a ray sees: the term on one in N of the samples left out.
+    // Without the draws behind what a ray sees: the terms on one in N of the samples left out.
     config.sampling.regularised_left_out = 0;
     let trainer = sharpened(&config, &set);
     // Without the occupancy grid the steps and the reference below take the same depths.
@@ -459,14 +481,17 @@ fn the_curvature_term_sees_every_sample_a_step_leaves_out_as_if_each_were_render
     let (model, params) = (&trainer.model, &trainer.params);
     let step = |every: usize, start: f32| {
         let (mut config, mut batch) = (config.clone(), batch.clone());
-        config.sampling.regularise_left_out_every = every;
+        match region {
+            LeftOut::Everywhere => config.sampling.regularise_left_out_every = every,
+            LeftOut::DeepInside => config.sampling.regularise_inside_every = every,
+        }
         batch.left_out_starts = vec![start; batch.rays.len()];
         let mut grad = vec![0f32; params.len()];
         let losses = CpuStep.gradient(model, params, &set, &config, &batch, &mut grad).losses;
         (losses, grad)
     };
-    // The reference: the rendered samples' term (a step regularising none) and each left-out
-    // sample's own, all normalised by the samples a step takes rendering every one.
+    // The reference: the rendered samples' terms (a step regularising none) and each left-out
+    // sample's own in the region, all normalised by the samples a step takes rendering every one.
     let (rendered_only, _) = step(0, 0.5);
     let rays: Vec<_> = batch.rays.iter().map(|&(v, p)| set.ray(v, p)).collect();
     let samples = weighted_samples(model, params, &batch.level_weight, &rays, config.sampling, &batch.jitter, None);
@@ -476,17 +501,40 @@ fn the_curvature_term_sees_every_sample_a_step_leaves_out_as_if_each_were_render
     }
     let rendered: usize = samples.rendered.iter().map(Vec::len).sum();
     let field = FieldSamples::evaluate(model, params, &batch.level_weight, left_out, batch.fd_step);
-    assert!(field.len() > 2 * rendered, "{} samples left out, {rendered} rendered", field.len());
+    assert!(field.len() > rendered, "{} samples left out, {rendered} rendered", field.len());
     let every_samples = (batch.rays.len() * (config.sampling.coarse + config.sampling.fine)) as f64;
-    let mut truth = rendered_only[Term::Curvature];
-    for &laplacian in &field.laplacians {
-        truth += curvature(laplacian).0 as f64 / every_samples;
+    let (mut truth, mut in_region) = (rendered_only, 0);
+    for (i, &laplacian) in field.laplacians.iter().enumerate() {
+        if region == LeftOut::DeepInside && field.sdf[i] > -REGULARISED_CLEARANCE {
+            continue;
+        }
+        in_region += 1;
+        truth[Term::Curvature] += curvature(laplacian).0 as f64 / every_samples;
+        if region == LeftOut::DeepInside {
+            let g = &field.gradients[3 * i..3 * i + 3];
+            truth[Term::Eikonal] += eikonal([g[0], g[1], g[2]]).0 as f64 / every_samples;
+        }
     }
     let (all, all_grad) = step(1, 0.5);
-    assert!((all[Term::Curvature] - truth).abs() < 1e-4 * truth, "{} against {truth}", all[Term::Curvature]);
-    assert!(truth > 2.0 * rendered_only[Term::Curvature], "the left-out samples' part is most of it");
-    // The Eikonal term stays the rendered samples' own.
-    assert_eq!(all[Term::Eikonal], rendered_only[Term::Eikonal]);
+    let terms: &[Term] =
+        if region == LeftOut::DeepInside { &[Term::Curvature, Term::Eikonal] } else { &[Term::Curvature] };
+    for &term in terms {
+        let (value, truth, rendered) = (all[term], truth[term], rendered_only[term]);
+        println!("{term:?}: every sample of the region {value:.5}, reference {truth:.5}, the rendered samples' {rendered:.5}");
+        assert!((value - truth).abs() < 1e-4 * truth, "{term:?}: {value} against {truth}");
+        // A mutation that leaves out the region's samples misses the reference by their part.
+        assert!(truth - rendered > 0.02 * truth, "{term:?}: the left-out samples' part is a real share of it");
+    }
+    if region == LeftOut::Everywhere {
+        assert!(
+            truth[Term::Curvature] > 2.0 * rendered_only[Term::Curvature],
+            "the left-out samples' part is most of it"
+        );
+        // The Eikonal term stays the rendered samples' own.
+        assert_eq!(all[Term::Eikonal], rendered_only[Term::Eikonal]);
+    }
+    println!("{in_region} of {} samples left out in the region", field.len());
+    assert!(in_region > 15, "{in_region} samples left out in the region");
     // One in four from each of the four starts: on average the gradient of every sample.
     let every = 4;
     let mut mean = vec![0f64; params.len()];
