@@ -237,6 +237,7 @@ fn resume_continues_bit_for_bit() {
     config.tangent_views = 4; // of the six views: each ray's sample drawn
     config.samples_per_step = 1200; // each step's rays follow the samples of the one before
     config.sampling.regularise_left_out_every = 8; // the curvature term on one in 8 of the samples left out
+    config.sampling.regularise_inside_every = 4; // both terms on one in 4 of those deep inside
     assert!(config.sampling.skips_empty_space() && rmvp_recon::occupancy::REFRESH_EVERY == 16);
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     // On one thread here, on two below: the same steps whatever the number of threads.
