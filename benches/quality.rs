@@ -1,5 +1,5 @@
 //! Reconstruction quality on two sets of scenes, reconstructed with the default preset and its
-//! two ablations and evaluated; one Markdown table: scene, minutes (training + outputs),
+//! two ablations and evaluated; one Markdown table: scene, seed, minutes (training + outputs),
 //! Chamfer, F-score, normal MAE over the training views, the held-out views and all views, and
 //! each set's mean.
 //!
@@ -12,7 +12,10 @@
 //! `cargo bench --bench quality [-- --sets mitsuba,ours --scenes horse,bumps --variants
 //! full,no-geometric --res 256x256 --views 6 --iters N --rays N --seed S --preset
 //! fast|dense|paper --mesh-res N --curve 250,500 --error-maps]` (part of `./run bench` with its
-//! defaults). `--scenes` picks scenes of the sets by name. `--views` sets our scenes' training
+//! defaults). `--scenes` picks scenes of the sets by name. `--seed 0,1,2` runs each scene and
+//! variant at each seed and ends with each one's spread over them: the normal error's and
+//! Chamfer's mean and range, and whether a variant's range lies wholly above or below the
+//! first variant's (worse or better beyond the seeds' spread). `--views` sets our scenes' training
 //! views (the held-out six stay the same). `--curve` also measures the model at those
 //! iterations of the run (its mesh; training minutes so far): quality against time.
 //! `--error-maps` writes each view's normal error map (`normal_errors/<view>_normal_error.png`)
@@ -48,6 +51,7 @@ struct Row {
     set: &'static str,
     scene: String,
     variant: String,
+    seed: u64,
     preset: Preset,
     size: String,
     iterations: u32,
@@ -94,6 +98,7 @@ fn measure(
         set: run.set,
         scene: run.scene.to_string(),
         variant: run.variant.to_string(),
+        seed: run.seed,
         preset: run.preset,
         size: format!("{}x{}", run.size.0, run.size.1),
         iterations,
@@ -106,10 +111,11 @@ fn measure(
         normal_mae_deg: evaluation.normal_mae_deg.unwrap_or(f64::NAN),
     };
     println!(
-        "| {} | {} | {} | {} | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} | {:.2} |",
+        "| {} | {} | {} | {} | {} | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} | {:.2} |",
         row.set,
         row.scene,
         row.variant,
+        row.seed,
         row.iterations,
         row.train_minutes,
         row.output_minutes,
@@ -143,7 +149,8 @@ struct Plan {
     iterations: Option<u32>,
     /// Rays per iteration (default: the preset's).
     rays: Option<usize>,
-    seed: u64,
+    /// Each scene and variant runs at each of these seeds.
+    seeds: Vec<u64>,
     preset: Preset,
     mesh_resolution: usize,
     /// Iterations at which the model is measured too.
@@ -161,7 +168,7 @@ fn plan() -> Plan {
         views: CaptureOptions::default().views,
         iterations: None,
         rays: None,
-        seed: 0,
+        seeds: vec![0],
         preset: Preset::Fast,
         mesh_resolution: ReconOptions::default().mesh_res,
         curve: Vec::new(),
@@ -186,7 +193,7 @@ fn plan() -> Plan {
             "--views" => plan.views = value.parse().expect("--views N"),
             "--iters" => plan.iterations = Some(value.parse().expect("--iters N")),
             "--rays" => plan.rays = Some(value.parse().expect("--rays N")),
-            "--seed" => plan.seed = value.parse().expect("--seed N"),
+            "--seed" => plan.seeds = list().iter().map(|v| v.parse().expect("--seed N,N")).collect(),
             "--preset" => {
                 plan.preset = serde_json::from_value(value.as_str().into()).expect("--preset fast|dense|paper")
             }
@@ -211,14 +218,14 @@ const VARIANTS: [(&str, &str); 8] = [
     ("fixed-polarization", "learned_polarization = false"),
 ];
 
-/// The options of `variant`: a name of [`VARIANTS`], or `NAME:FIELD=VALUE;FIELD=VALUE` (any
-/// [`ReconOptions`] fields, TOML values) for a variant of one's own.
-fn options(variant: &str, plan: &Plan) -> ReconOptions {
+/// The options of `variant` at `seed`: a name of [`VARIANTS`], or `NAME:FIELD=VALUE;FIELD=VALUE`
+/// (any [`ReconOptions`] fields, TOML values) for a variant of one's own.
+fn options(variant: &str, plan: &Plan, seed: u64) -> ReconOptions {
     let base = ReconOptions {
         preset: plan.preset,
         iters: plan.iterations,
         batch: plan.rays,
-        seed: plan.seed,
+        seed,
         mesh_res: plan.mesh_resolution,
         ..ReconOptions::default()
     };
@@ -304,9 +311,9 @@ fn main() {
     let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench-quality");
     let subjects = subjects(&plan, &root);
     println!(
-        "| set | scene | variant | iterations | minutes (train + outputs) | Chamfer | F-score | normal MAE train | held out | all |"
+        "| set | scene | variant | seed | iterations | minutes (train + outputs) | Chamfer | F-score | normal MAE train | held out | all |"
     );
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
     let mut rows = Vec::new();
     for subject in &subjects {
         let name = &subject.name;
@@ -315,8 +322,8 @@ fn main() {
         let log = subject.runs.parent().expect("a set folder").join("results.jsonl");
         let mut results = std::fs::OpenOptions::new().create(true).append(true).open(&log).expect("results log");
         let size = data.views.first().map_or((0, 0), |v| (v.camera.width, v.camera.height));
-        for variant in &plan.variants {
-            let options = options(variant, &plan);
+        for (variant, &seed) in plan.variants.iter().flat_map(|v| plan.seeds.iter().map(move |s| (v, s))) {
+            let options = options(variant, &plan, seed);
             let variant_name = variant.split(':').next().unwrap_or(variant).to_string();
             let mut label = match plan.preset {
                 Preset::Fast => variant_name,
@@ -329,7 +336,7 @@ fn main() {
             if let Some(n) = plan.rays {
                 label += &format!("-{n}rays");
             }
-            let out = subject.runs.join(format!("{label}-seed{}", plan.seed));
+            let out = subject.runs.join(format!("{label}-seed{seed}"));
             let _ = std::fs::remove_dir_all(&out);
             let run = Run {
                 set: subject.set,
@@ -338,7 +345,7 @@ fn main() {
                 preset: plan.preset,
                 size,
                 views: data.views.iter().filter(|v| v.split == Split::Train).count(),
-                seed: plan.seed,
+                seed,
             };
             let start = Instant::now();
             // Training time so far: the wall time less the time spent measuring the curve.
@@ -372,7 +379,7 @@ fn main() {
         let of: Vec<&Row> = rows.iter().filter(|r| r.set == set && r.variant == variant).collect();
         let mean = |f: fn(&Row) -> f64| of.iter().map(|r| f(r)).sum::<f64>() / of.len() as f64;
         println!(
-            "| {set} | mean of {} | {variant} | | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} | {:.2} |",
+            "| {set} | mean of {} | {variant} | | | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} | {:.2} |",
             of.len(),
             mean(|r| r.train_minutes),
             mean(|r| r.output_minutes),
@@ -381,6 +388,69 @@ fn main() {
             mean(|r| r.normal_mae_train_deg),
             mean(|r| r.normal_mae_held_out_deg),
             mean(|r| r.normal_mae_deg)
+        );
+    }
+    if plan.seeds.len() > 1 {
+        print_spreads(&rows);
+    }
+}
+
+/// The least and largest of `values`.
+fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)))
+}
+
+/// How the range `of` of a figure where lower is better stands against the range `base`:
+/// worse or better beyond the seeds' spread where the two do not overlap.
+fn against(of: (f64, f64), base: (f64, f64)) -> &'static str {
+    if of.0 > base.1 {
+        "worse"
+    } else if of.1 < base.0 {
+        "better"
+    } else {
+        "within"
+    }
+}
+
+/// Each scene's and variant's normal error and Chamfer over the seeds (mean, least and
+/// largest), each variant's ranges against the first variant's of the same scene.
+fn print_spreads(rows: &[Row]) {
+    println!();
+    println!("| set | scene | variant | seeds | normal MAE mean | range | Chamfer mean | range | against the first variant (normal, Chamfer) |");
+    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
+    let mut groups: Vec<(&str, &str, &str)> = Vec::new();
+    for row in rows {
+        if !groups.contains(&(row.set, row.scene.as_str(), row.variant.as_str())) {
+            groups.push((row.set, &row.scene, &row.variant));
+        }
+    }
+    let of = |set: &str, scene: &str, variant: &str| -> Vec<&Row> {
+        rows.iter().filter(|r| r.set == set && r.scene == scene && r.variant == variant).collect()
+    };
+    for &(set, scene, variant) in &groups {
+        let runs = of(set, scene, variant);
+        let seeds: Vec<String> = runs.iter().map(|r| r.seed.to_string()).collect();
+        let mean = |f: fn(&Row) -> f64| runs.iter().map(|r| f(r)).sum::<f64>() / runs.len() as f64;
+        let normal = range(runs.iter().map(|r| r.normal_mae_deg));
+        let chamfer = range(runs.iter().map(|r| r.chamfer));
+        let first = groups.iter().find(|g| g.0 == set && g.1 == scene).expect("its own group").2;
+        let verdict = if first == variant {
+            String::new()
+        } else {
+            let base = of(set, scene, first);
+            let base_normal = range(base.iter().map(|r| r.normal_mae_deg));
+            let base_chamfer = range(base.iter().map(|r| r.chamfer));
+            format!("{}, {}", against(normal, base_normal), against(chamfer, base_chamfer))
+        };
+        println!(
+            "| {set} | {scene} | {variant} | {} | {:.2} | {:.2}-{:.2} | {:.4} | {:.4}-{:.4} | {verdict} |",
+            seeds.join(","),
+            mean(|r| r.normal_mae_deg),
+            normal.0,
+            normal.1,
+            mean(|r| r.chamfer),
+            chamfer.0,
+            chamfer.1,
         );
     }
 }
