@@ -369,30 +369,39 @@ fn main() {
             rows.push(measure(&mut results, &run, data, &out, iterations, seconds, plan.error_maps));
         }
     }
-    let mut groups: Vec<(&str, &str)> = Vec::new();
-    for row in &rows {
-        if !groups.contains(&(row.set, row.variant.as_str())) {
-            groups.push((row.set, &row.variant));
-        }
-    }
-    for (set, variant) in groups {
+    for (set, variant) in distinct(rows.iter().map(|r| (r.set, r.variant.as_str()))) {
         let of: Vec<&Row> = rows.iter().filter(|r| r.set == set && r.variant == variant).collect();
-        let mean = |f: fn(&Row) -> f64| of.iter().map(|r| f(r)).sum::<f64>() / of.len() as f64;
         println!(
             "| {set} | mean of {} | {variant} | | | {:.1} + {:.2} | {:.4} | {:.3} | {:.2} | {:.2} | {:.2} |",
             of.len(),
-            mean(|r| r.train_minutes),
-            mean(|r| r.output_minutes),
-            mean(|r| r.chamfer),
-            mean(|r| r.f_score),
-            mean(|r| r.normal_mae_train_deg),
-            mean(|r| r.normal_mae_held_out_deg),
-            mean(|r| r.normal_mae_deg)
+            mean(&of, |r| r.train_minutes),
+            mean(&of, |r| r.output_minutes),
+            mean(&of, |r| r.chamfer),
+            mean(&of, |r| r.f_score),
+            mean(&of, |r| r.normal_mae_train_deg),
+            mean(&of, |r| r.normal_mae_held_out_deg),
+            mean(&of, |r| r.normal_mae_deg)
         );
     }
     if plan.seeds.len() > 1 {
         print_spreads(&rows);
     }
+}
+
+/// `items` without repeats, in the order they first come.
+fn distinct<T: PartialEq>(items: impl Iterator<Item = T>) -> Vec<T> {
+    let mut kept = Vec::new();
+    for item in items {
+        if !kept.contains(&item) {
+            kept.push(item);
+        }
+    }
+    kept
+}
+
+/// The mean of figure `f` over `rows`.
+fn mean(rows: &[&Row], f: fn(&Row) -> f64) -> f64 {
+    rows.iter().map(|r| f(r)).sum::<f64>() / rows.len() as f64
 }
 
 /// The least and largest of `values`.
@@ -418,19 +427,13 @@ fn print_spreads(rows: &[Row]) {
     println!();
     println!("| set | scene | variant | seeds | normal MAE mean | range | Chamfer mean | range | against the first variant (normal, Chamfer) |");
     println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- |");
-    let mut groups: Vec<(&str, &str, &str)> = Vec::new();
-    for row in rows {
-        if !groups.contains(&(row.set, row.scene.as_str(), row.variant.as_str())) {
-            groups.push((row.set, &row.scene, &row.variant));
-        }
-    }
+    let groups = distinct(rows.iter().map(|r| (r.set, r.scene.as_str(), r.variant.as_str())));
     let of = |set: &str, scene: &str, variant: &str| -> Vec<&Row> {
         rows.iter().filter(|r| r.set == set && r.scene == scene && r.variant == variant).collect()
     };
     for &(set, scene, variant) in &groups {
         let runs = of(set, scene, variant);
         let seeds: Vec<String> = runs.iter().map(|r| r.seed.to_string()).collect();
-        let mean = |f: fn(&Row) -> f64| runs.iter().map(|r| f(r)).sum::<f64>() / runs.len() as f64;
         let normal = range(runs.iter().map(|r| r.normal_mae_deg));
         let chamfer = range(runs.iter().map(|r| r.chamfer));
         let first = groups.iter().find(|g| g.0 == set && g.1 == scene).expect("its own group").2;
@@ -445,10 +448,10 @@ fn print_spreads(rows: &[Row]) {
         println!(
             "| {set} | {scene} | {variant} | {} | {:.2} | {:.2}-{:.2} | {:.4} | {:.4}-{:.4} | {verdict} |",
             seeds.join(","),
-            mean(|r| r.normal_mae_deg),
+            mean(&runs, |r| r.normal_mae_deg),
             normal.0,
             normal.1,
-            mean(|r| r.chamfer),
+            mean(&runs, |r| r.chamfer),
             chamfer.0,
             chamfer.1,
         );
