@@ -103,13 +103,12 @@ struct Norms {
     samples: f32,
 }
 
-/// Where the samples a step leaves out, one in N from a random start, are regularised.
-#[derive(Clone, Copy, PartialEq)]
-enum Regularised {
-    /// Everywhere: the curvature term.
-    Everywhere,
-    /// Inside the surface by [`REGULARISED_CLEARANCE`] or more: the Eikonal and curvature terms.
-    DeepInside,
+/// How many of the step's samples (of its every-sample count) a regularised point stands for
+/// in each term.
+#[derive(Clone, Copy, Default)]
+struct Shares {
+    eikonal: f32,
+    curvature: f32,
 }
 
 #[derive(Default)]
@@ -266,71 +265,70 @@ impl Step<'_> {
             }
             if !points.is_empty() {
                 // The curvature term alone, outside the surface by the clearance.
-                let share = |field: &FieldSamples, i: usize| {
-                    if field.sdf[i] < REGULARISED_CLEARANCE {
-                        0.0
-                    } else {
-                        shares[i]
-                    }
+                let share = |field: &FieldSamples, i: usize| Shares {
+                    eikonal: 0.0,
+                    curvature: if field.sdf[i] < REGULARISED_CLEARANCE { 0.0 } else { shares[i] },
                 };
-                grid.extend(self.regularise(points, share, false, &mut sums, &mut grad));
+                grid.extend(self.regularise(points, share, &mut sums, &mut grad));
             }
         }
         let starts = &self.batch.left_out_starts;
-        let systematic = [
-            (config.sampling.regularise_left_out_every, Regularised::Everywhere),
-            (config.sampling.regularise_inside_every, Regularised::DeepInside),
-        ];
-        for (every, region) in systematic {
-            if every == 0 || starts.is_empty() {
-                continue;
+        let (everywhere, inside) = (config.sampling.regularise_left_out_every, config.sampling.regularise_inside_every);
+        if !starts.is_empty() && (everywhere > 0 || inside > 0) {
+            // One in N of each ray's samples left out, from its random start, stands for N of
+            // them: over the starts the terms see every sample of the region, as rendering
+            // every one does. `--regularise-left-out-every`: the curvature term everywhere, so
+            // that the field on either side of the surface takes the curvature of the space
+            // around it (the Eikonal term there too rounds edges). `--regularise-inside-every`:
+            // both terms deep inside, which the samples rendered (near the surface and before
+            // it) leave the object's inside without; the SDF the sampling found picks the
+            // samples there, and the field's own decides. A sample that both pick is evaluated
+            // once.
+            let picks = |every: usize, u: f32| (every > 0).then(|| ((u * every as f32) as usize).min(every - 1));
+            let (mut points, mut picked) = (Vec::new(), Vec::new());
+            for (((ray, left_out), sdf), &u) in
+                rays.iter().zip(&samples.left_out).zip(&samples.left_out_sdf).zip(&starts[range.clone()])
+            {
+                let (first_everywhere, first_inside) = (picks(everywhere, u), picks(inside, u));
+                for (k, (&depth, &sdf)) in left_out.iter().zip(sdf).enumerate() {
+                    let everywhere = first_everywhere.is_some_and(|first| k % everywhere == first);
+                    let inside = first_inside.is_some_and(|first| k % inside == first) && sdf <= -REGULARISED_CLEARANCE;
+                    if everywhere || inside {
+                        points.extend(ray.at(depth));
+                        picked.push((everywhere, inside));
+                    }
+                }
             }
-            // One in `every` of each ray's samples left out, from its random start, stands for
-            // `every` of them: over the starts the terms see every sample of the region, as
-            // rendering every one does. Everywhere: the curvature term, so that the field on
-            // either side of the surface takes the curvature of the space around it (the
-            // Eikonal term there too rounds edges). Deep inside: both terms, which the samples
-            // rendered (near the surface and before it) leave the object's inside without.
-            let mut points = Vec::new();
-            for ((ray, left_out), &u) in rays.iter().zip(&samples.left_out).zip(&starts[range.clone()]) {
-                let first = ((u * every as f32) as usize).min(every - 1);
-                left_out.iter().skip(first).step_by(every).for_each(|&depth| points.extend(ray.at(depth)));
+            if !points.is_empty() {
+                let share = |field: &FieldSamples, i: usize| {
+                    let (everywhere_picked, inside_picked) = picked[i];
+                    let deep = inside_picked && field.sdf[i] <= -REGULARISED_CLEARANCE;
+                    let deep_share = if deep { inside as f32 } else { 0.0 };
+                    let everywhere_share = if everywhere_picked { everywhere as f32 } else { 0.0 };
+                    Shares { eikonal: deep_share, curvature: everywhere_share + deep_share }
+                };
+                grid.extend(self.regularise(points, share, &mut sums, &mut grad));
             }
-            if points.is_empty() {
-                continue;
-            }
-            let weight = every as f32;
-            let share = |field: &FieldSamples, i: usize| match region {
-                Regularised::Everywhere => weight,
-                Regularised::DeepInside if field.sdf[i] <= -REGULARISED_CLEARANCE => weight,
-                Regularised::DeepInside => 0.0,
-            };
-            let with_eikonal = region == Regularised::DeepInside;
-            grid.extend(self.regularise(points, share, with_eikonal, &mut sums, &mut grad));
         }
         (grad, grid, sums)
     }
 
     /// The regularisers alone at `points` (n x 3), point `i` weighing `share(field, i)`
-    /// samples: the curvature term, and the Eikonal term too where `with_eikonal`; adds the
-    /// networks' gradient into `grad` and returns the hash grid's.
+    /// samples in each term; adds the networks' gradient into `grad` and returns the hash
+    /// grid's.
     fn regularise(
         &self,
         points: Vec<f32>,
-        share: impl Fn(&FieldSamples, usize) -> f32,
-        with_eikonal: bool,
+        share: impl Fn(&FieldSamples, usize) -> Shares,
         sums: &mut ChunkSums,
         grad: &mut [f32],
     ) -> GridGradient {
         let batch = self.batch;
         let field = FieldSamples::evaluate(self.model, self.params, &batch.level_weight, points, batch.fd_step);
+        let shares: Vec<Shares> = (0..field.sdf.len()).map(|i| share(&field, i)).collect();
+        let d_gradients = self.eikonal_gradients(&field, |i| shares[i].eikonal, sums);
+        let d_laplacians = self.curvature_gradients(&field, |i| shares[i].curvature, sums);
         let zeros = |n: usize| vec![0f32; n];
-        let d_gradients = if with_eikonal {
-            self.eikonal_gradients(&field, |i| share(&field, i), sums)
-        } else {
-            zeros(field.gradients.len())
-        };
-        let d_laplacians = self.curvature_gradients(&field, |i| share(&field, i), sums);
         let d = FieldGrad {
             sdf: &zeros(field.sdf.len()),
             normals: &zeros(field.normals.len()),
@@ -342,14 +340,17 @@ impl Step<'_> {
     }
 
     /// The Eikonal term on `field`'s finite-difference gradients, point `i` weighing
-    /// `share(i)` samples (of the step's every-sample count): its loss added to `sums`, and its
-    /// gradient with respect to the gradients (n x 3).
+    /// `share(i)` samples (of the step's every-sample count; none where 0): its loss added to
+    /// `sums`, and its gradient with respect to the gradients (n x 3).
     fn eikonal_gradients(&self, field: &FieldSamples, share: impl Fn(usize) -> f32, sums: &mut ChunkSums) -> Vec<f32> {
         let (w, samples) = (&self.config.weights, self.norm.samples);
         let mut d_gradients = vec![0f32; field.gradients.len()];
         for (i, (g, d)) in field.gradients.chunks_exact(3).zip(d_gradients.chunks_exact_mut(3)).enumerate() {
-            let (loss, dg) = eikonal([g[0], g[1], g[2]]);
             let share = share(i);
+            if share == 0.0 {
+                continue;
+            }
+            let (loss, dg) = eikonal([g[0], g[1], g[2]]);
             sums.losses[Term::Eikonal] += (loss * share) as f64 / samples as f64;
             for k in 0..3 {
                 d[k] = w[Term::Eikonal] * dg[k] * share / samples;
@@ -359,7 +360,7 @@ impl Step<'_> {
     }
 
     /// The curvature term on `field`'s Laplacians, point `i` weighing `share(i)` samples (of
-    /// the step's every-sample count): its loss added to `sums`, and its gradient with respect
+    /// the step's every-sample count; none where 0): its loss added to `sums`, and its gradient with respect
     /// to the Laplacians (n).
     fn curvature_gradients(
         &self,
@@ -373,9 +374,13 @@ impl Step<'_> {
             .iter()
             .enumerate()
             .map(|(i, &l)| {
+                let share = share(i);
+                if share == 0.0 {
+                    return 0.0;
+                }
                 let (loss, d) = curvature(l);
-                sums.losses[Term::Curvature] += (loss * share(i)) as f64 / samples as f64;
-                w[Term::Curvature] * d * share(i) / samples
+                sums.losses[Term::Curvature] += (loss * share) as f64 / samples as f64;
+                w[Term::Curvature] * d * share / samples
             })
             .collect()
     }

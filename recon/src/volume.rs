@@ -96,23 +96,27 @@ pub fn weighted_samples(
 ) -> StepSamples {
     let (depths, sdf) = depths_and_sdf(model, params, level_weight, rays, sampling, jitter, occupancy);
     if !sampling.skips_empty_space() {
-        let left_out = vec![Vec::new(); depths.len()];
-        return StepSamples { rendered: depths, left_out };
+        let none = vec![Vec::new(); depths.len()];
+        return StepSamples { rendered: depths, left_out: none.clone(), left_out_sdf: none };
     }
     let inv_s = model.inv_s(params);
-    let (rendered, left_out) = depths
-        .iter()
-        .zip(&sdf)
-        .map(|(t, s)| {
-            let keep = carrying_weight(s, inv_s, sampling.min_weight);
-            let (mut kept, mut left) = (Vec::new(), Vec::new());
-            for (&depth, carries) in t.iter().zip(keep) {
-                if carries { &mut kept } else { &mut left }.push(depth);
+    let mut samples = StepSamples::default();
+    for (t, s) in depths.iter().zip(&sdf) {
+        let keep = carrying_weight(s, inv_s, sampling.min_weight);
+        let (mut kept, mut left, mut left_sdf) = (Vec::new(), Vec::new(), Vec::new());
+        for ((&depth, &sdf), carries) in t.iter().zip(s).zip(keep) {
+            if carries {
+                kept.push(depth);
+            } else {
+                left.push(depth);
+                left_sdf.push(sdf);
             }
-            (kept, left)
-        })
-        .unzip();
-    StepSamples { rendered, left_out }
+        }
+        samples.rendered.push(kept);
+        samples.left_out.push(left);
+        samples.left_out_sdf.push(left_sdf);
+    }
+    samples
 }
 
 /// A training step's samples on each ray ([`weighted_samples`]), in depth order.
@@ -122,6 +126,9 @@ pub struct StepSamples {
     pub rendered: Vec<Vec<f32>>,
     /// The depths left out (none where every sample is rendered).
     pub left_out: Vec<Vec<f32>>,
+    /// The SDF the sampling found at each depth left out: the networks', or the occupancy
+    /// grid's where it shows the surface to be far ([`OccupancyGrid::far_sdf`]).
+    pub left_out_sdf: Vec<Vec<f32>>,
 }
 
 /// Which of a ray's samples (SDF `sdf` there, in depth order) carry weight, as

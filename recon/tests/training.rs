@@ -453,6 +453,18 @@ enum LeftOut {
     /// The samples inside the surface by the clearance: the Eikonal and curvature terms
     /// (`Sampling::regularise_inside_every`).
     DeepInside,
+    /// Both at once: a sample both pick carries the curvature term twice.
+    Both,
+}
+
+impl LeftOut {
+    fn everywhere(self) -> bool {
+        self != LeftOut::DeepInside
+    }
+
+    fn deep_inside(self) -> bool {
+        self != LeftOut::Everywhere
+    }
 }
 
 #[test]
@@ -463,6 +475,11 @@ fn the_curvature_term_sees_every_sample_a_step_leaves_out_as_if_each_were_render
 #[test]
 fn both_regularisers_see_every_sample_a_step_leaves_deep_inside_as_if_each_were_rendered() {
     regularises_left_out_samples_as_if_each_were_rendered(LeftOut::DeepInside);
+}
+
+#[test]
+fn the_left_out_regularisers_together_add_up_as_each_alone() {
+    regularises_left_out_samples_as_if_each_were_rendered(LeftOut::Both);
 }
 
 /// One in N of the samples a step leaves out, from each of N starts, regularised for N: on
@@ -482,9 +499,11 @@ fn regularises_left_out_samples_as_if_each_were_rendered(region: LeftOut) {
     let (model, params) = (&trainer.model, &trainer.params);
     let step = |every: usize, start: f32| {
         let (mut config, mut batch) = (config.clone(), batch.clone());
-        match region {
-            LeftOut::Everywhere => config.sampling.regularise_left_out_every = every,
-            LeftOut::DeepInside => config.sampling.regularise_inside_every = every,
+        if region.everywhere() {
+            config.sampling.regularise_left_out_every = every;
+        }
+        if region.deep_inside() {
+            config.sampling.regularise_inside_every = every;
         }
         batch.left_out_starts = vec![start; batch.rays.len()];
         let mut grad = vec![0f32; params.len()];
@@ -506,19 +525,20 @@ fn regularises_left_out_samples_as_if_each_were_rendered(region: LeftOut) {
     let every_samples = (batch.rays.len() * (config.sampling.coarse + config.sampling.fine)) as f64;
     let (mut truth, mut in_region) = (rendered_only, 0);
     for (i, &laplacian) in field.laplacians.iter().enumerate() {
-        if region == LeftOut::DeepInside && field.sdf[i] > -REGULARISED_CLEARANCE {
+        let deep = region.deep_inside() && field.sdf[i] <= -REGULARISED_CLEARANCE;
+        let curvature_share = u8::from(region.everywhere()) + u8::from(deep);
+        if curvature_share == 0 {
             continue;
         }
         in_region += 1;
-        truth[Term::Curvature] += curvature(laplacian).0 as f64 / every_samples;
-        if region == LeftOut::DeepInside {
+        truth[Term::Curvature] += (curvature_share as f32 * curvature(laplacian).0) as f64 / every_samples;
+        if deep {
             let g = &field.gradients[3 * i..3 * i + 3];
             truth[Term::Eikonal] += eikonal([g[0], g[1], g[2]]).0 as f64 / every_samples;
         }
     }
     let (all, all_grad) = step(1, 0.5);
-    let terms: &[Term] =
-        if region == LeftOut::DeepInside { &[Term::Curvature, Term::Eikonal] } else { &[Term::Curvature] };
+    let terms: &[Term] = if region.deep_inside() { &[Term::Curvature, Term::Eikonal] } else { &[Term::Curvature] };
     for &term in terms {
         let (value, truth, rendered) = (all[term], truth[term], rendered_only[term]);
         println!("{term:?}: every sample of the region {value:.5}, reference {truth:.5}, the rendered samples' {rendered:.5}");
