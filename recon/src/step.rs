@@ -105,7 +105,7 @@ struct Norms {
 
 /// How many of the step's samples (of its every-sample count) a regularised point stands for
 /// in each term.
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy)]
 struct Shares {
     eikonal: f32,
     curvature: f32,
