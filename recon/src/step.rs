@@ -360,8 +360,8 @@ impl Step<'_> {
     }
 
     /// The curvature term on `field`'s Laplacians, point `i` weighing `share(i)` samples (of
-    /// the step's every-sample count; none where 0): its loss added to `sums`, and its gradient with respect
-    /// to the Laplacians (n).
+    /// the step's every-sample count; none where 0): its loss added to `sums`, and its
+    /// gradient with respect to the Laplacians (n).
     fn curvature_gradients(
         &self,
         field: &FieldSamples,
