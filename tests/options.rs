@@ -35,6 +35,7 @@ fn changed(field: &str) -> (&'static str, &'static str) {
         "regularised_left_out" => ("2", "2"),
         "regularise_left_out_every" => ("16", "16"),
         "regularise_inside_every" => ("4", "4"),
+        "regularise_near_surface" => ("0.02", "0.02"),
         "margin" => ("5", "5"),
         "grid_level_decay" => ("0.8", "0.8"),
         "aop_reliability" => ("0.05", "0.05"),

@@ -68,6 +68,13 @@ pub const MIN_SAMPLE_WEIGHT: f32 = 1e-4;
 /// grows less of a blob under its object, at some seeds none (`docs/reconstruction.md`).
 pub const REGULARISED_LEFT_OUT: usize = 2;
 
+/// The fast and dense presets' distance from the surface within which the samples a step
+/// leaves out still carry the Eikonal and curvature terms
+/// ([`crate::volume::Sampling::regularise_near_surface`]): the field just off the surface keeps
+/// the smoothing that rendering every sample gives it, which a smooth object's normals need
+/// (`docs/design.md`, a smooth object's ripple).
+pub const REGULARISED_NEAR_SURFACE: f32 = 0.05;
+
 /// The fast and dense presets' most views that the AoP tangent loss compares with a surface
 /// point ([`crate::geometric::ViewSample`]); a scene of 6 views keeps every one.
 pub const TANGENT_VIEWS: usize = 8;
@@ -130,6 +137,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
                 regularised_left_out: 0,
                 regularise_left_out_every: 0,
                 regularise_inside_every: 0,
+                regularise_near_surface: 0.0,
             },
             AdamConfig {
                 lr_network: 5e-4,
@@ -152,6 +160,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
                 regularised_left_out: if preset == Preset::Fast { REGULARISED_LEFT_OUT } else { 0 },
                 regularise_left_out_every: 0,
                 regularise_inside_every: 0,
+                regularise_near_surface: REGULARISED_NEAR_SURFACE,
             },
             AdamConfig {
                 lr_network: 2e-3,

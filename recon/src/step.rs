@@ -103,6 +103,17 @@ struct Norms {
     samples: f32,
 }
 
+/// Why a sample a step leaves out is regularised.
+#[derive(Clone, Copy)]
+struct Picked {
+    /// Within [`Sampling::regularise_near_surface`](crate::volume::Sampling) of the surface.
+    near: bool,
+    /// One in [`Sampling::regularise_left_out_every`](crate::volume::Sampling).
+    everywhere: bool,
+    /// One in [`Sampling::regularise_inside_every`](crate::volume::Sampling), deep inside.
+    inside: bool,
+}
+
 /// How many of the step's samples (of its every-sample count) a regularised point stands for
 /// in each term.
 #[derive(Clone, Copy)]
@@ -273,38 +284,52 @@ impl Step<'_> {
             }
         }
         let starts = &self.batch.left_out_starts;
-        let (everywhere, inside) = (config.sampling.regularise_left_out_every, config.sampling.regularise_inside_every);
-        if !starts.is_empty() && (everywhere > 0 || inside > 0) {
-            // One in N of each ray's samples left out, from its random start, stands for N of
-            // them: over the starts the terms see every sample of the region, as rendering
-            // every one does. `--regularise-left-out-every`: the curvature term everywhere, so
-            // that the field on either side of the surface takes the curvature of the space
-            // around it (the Eikonal term there too rounds edges). `--regularise-inside-every`:
-            // both terms deep inside, which the samples rendered (near the surface and before
-            // it) leave the object's inside without; the SDF the sampling found picks the
-            // samples there, and the field's own decides. A sample that both pick is evaluated
-            // once.
+        let sampling = config.sampling;
+        let (everywhere, inside) = (sampling.regularise_left_out_every, sampling.regularise_inside_every);
+        let systematic = !starts.is_empty() && (everywhere > 0 || inside > 0);
+        let near = sampling.regularise_near_surface;
+        if systematic || near > 0.0 {
+            // `--regularise-near-surface`: every sample left out within that distance of the
+            // surface (by the SDF the sampling found) carries both terms for itself, as it
+            // would rendered; the rendered samples alone leave the field just off the surface
+            // without them, and a smooth object's normals ripple. One in N of each ray's other
+            // samples left out, from its random start, stands for N of them: over the starts
+            // the terms see every sample of the region, as rendering every one does.
+            // `--regularise-left-out-every`: the curvature term everywhere, so that the field
+            // on either side of the surface takes the curvature of the space around it (the
+            // Eikonal term there too rounds edges). `--regularise-inside-every`: both terms deep
+            // inside, which the samples rendered (near the surface and before it) leave the
+            // object's inside without; the SDF the sampling found picks the samples there, and
+            // the field's own decides. A sample that more than one picks is evaluated once.
             let picks = |every: usize, u: f32| (every > 0).then(|| ((u * every as f32) as usize).min(every - 1));
             let (mut points, mut picked) = (Vec::new(), Vec::new());
-            for (((ray, left_out), sdf), &u) in
-                rays.iter().zip(&samples.left_out).zip(&samples.left_out_sdf).zip(&starts[range.clone()])
+            for (r, ((ray, left_out), sdf)) in rays.iter().zip(&samples.left_out).zip(&samples.left_out_sdf).enumerate()
             {
+                let u = if systematic { starts[range.start + r] } else { 0.0 };
                 let (first_everywhere, first_inside) = (picks(everywhere, u), picks(inside, u));
                 for (k, (&depth, &sdf)) in left_out.iter().zip(sdf).enumerate() {
-                    let everywhere = first_everywhere.is_some_and(|first| k % everywhere == first);
-                    let inside = first_inside.is_some_and(|first| k % inside == first) && sdf <= -REGULARISED_CLEARANCE;
-                    if everywhere || inside {
+                    let pick = Picked {
+                        near: sdf.abs() < near,
+                        everywhere: first_everywhere.is_some_and(|first| k % everywhere == first),
+                        inside: first_inside.is_some_and(|first| k % inside == first) && sdf <= -REGULARISED_CLEARANCE,
+                    };
+                    if pick.near || pick.everywhere || pick.inside {
                         points.extend(ray.at(depth));
-                        picked.push((everywhere, inside));
+                        picked.push(pick);
                     }
                 }
             }
             if !points.is_empty() {
                 let share = |field: &FieldSamples, i: usize| {
-                    let (everywhere_picked, inside_picked) = picked[i];
-                    let deep = inside_picked && field.sdf[i] <= -REGULARISED_CLEARANCE;
+                    let pick = picked[i];
+                    // The near samples are each one's own; the systematic picks stand for the
+                    // region's samples outside the near band.
+                    if pick.near {
+                        return Shares { eikonal: 1.0, curvature: 1.0 };
+                    }
+                    let deep = pick.inside && field.sdf[i] <= -REGULARISED_CLEARANCE;
                     let deep_share = if deep { inside as f32 } else { 0.0 };
-                    let everywhere_share = if everywhere_picked { everywhere as f32 } else { 0.0 };
+                    let everywhere_share = if pick.everywhere { everywhere as f32 } else { 0.0 };
                     Shares { eikonal: deep_share, curvature: everywhere_share + deep_share }
                 };
                 grid.extend(self.regularise(points, share, &mut sums, &mut grad));

@@ -42,6 +42,11 @@ pub struct Sampling {
     /// starts, the terms of every sample deep in the object, as if each were rendered; 0: none.
     #[serde(default)]
     pub regularise_inside_every: usize,
+    /// Every sample a step leaves out within this distance of the surface (by the SDF the
+    /// sampling found) still carries the Eikonal and curvature terms, each for itself, as it
+    /// would rendered; 0: none.
+    #[serde(default)]
+    pub regularise_near_surface: f32,
 }
 
 impl Sampling {

@@ -303,6 +303,7 @@ fn volume_rendering_end_to_end() {
         regularised_left_out: 0,
         regularise_left_out_every: 0,
         regularise_inside_every: 0,
+        regularise_near_surface: 0.0,
     };
     let depths = sample_depths(&model, &params, &lw, &rays, sampling, &[0.5; 5]);
     assert!(depths.iter().all(|d| d.len() == 20 && d.windows(2).all(|w| w[0] <= w[1])));
@@ -331,6 +332,7 @@ fn volume_rendering_at_the_samples_that_carry_weight() {
         regularised_left_out: 0,
         regularise_left_out_every: 0,
         regularise_inside_every: 0,
+        regularise_near_surface: 0.0,
     };
     let grid = OccupancyGrid::new(&model, &params, &lw);
     let depths = weighted_samples(&model, &params, &lw, &rays, sampling, &[0.5; 6], Some(&grid)).rendered;

@@ -490,8 +490,10 @@ fn regularises_left_out_samples_as_if_each_were_rendered(region: LeftOut) {
     use rmvp_recon::step::REGULARISED_CLEARANCE;
     use rmvp_recon::volume::weighted_samples;
     let (mut config, set) = spot_steps(200);
-    // Without the draws behind what a ray sees: the terms on one in N of the samples left out.
+    // Without the draws behind what a ray sees or the samples near the surface: the terms on
+    // one in N of the samples left out.
     config.sampling.regularised_left_out = 0;
+    config.sampling.regularise_near_surface = 0.0;
     let trainer = sharpened(&config, &set);
     // Without the occupancy grid the steps and the reference below take the same depths.
     let mut rng = Rng::for_pixel(7 + rmvp_testkit::test_seed(), 0, 0);
@@ -571,6 +573,66 @@ fn regularises_left_out_samples_as_if_each_were_rendered(region: LeftOut) {
     let spread = norm(&mut one_start.iter().zip(&all_grad).map(|(&o, &a)| (o - a) as f64));
     println!("gradient: |mean over starts - every sample| {difference:.3e}, one start {spread:.3e}, of {scale:.3e}");
     assert!(difference < 1e-4 * scale && spread > 20.0 * difference, "{difference} {spread} of {scale}");
+}
+
+#[test]
+fn the_regularisers_see_every_sample_a_step_leaves_near_the_surface_as_if_it_were_rendered() {
+    use rmvp_recon::losses::{curvature, eikonal, Term};
+    use rmvp_recon::samples::FieldSamples;
+    use rmvp_recon::volume::weighted_samples;
+    let (mut config, set) = spot_steps(200);
+    config.sampling.regularised_left_out = 0;
+    let near = config.sampling.regularise_near_surface;
+    assert!(near > 0.0, "the fast preset regularises the samples near the surface");
+    let trainer = sharpened(&config, &set);
+    let mut rng = Rng::for_pixel(11 + rmvp_testkit::test_seed(), 0, 0);
+    let batch = random_batch(&trainer, &mut rng, false, None);
+    let (model, params) = (&trainer.model, &trainer.params);
+    let step = |sampling: rmvp_recon::volume::Sampling| {
+        let config = TrainConfig { sampling, ..config.clone() };
+        let mut grad = vec![0f32; params.len()];
+        CpuStep.gradient(model, params, &set, &config, &batch, &mut grad).losses
+    };
+    let with =
+        |distance: f32| step(rmvp_recon::volume::Sampling { regularise_near_surface: distance, ..config.sampling });
+    // The reference: the rendered samples' terms and each left-out sample's own within the
+    // distance, by the SDF the sampling found, normalised as rendering every sample does.
+    let rendered_only = with(0.0);
+    let rays: Vec<_> = batch.rays.iter().map(|&(v, p)| set.ray(v, p)).collect();
+    let samples = weighted_samples(model, params, &batch.level_weight, &rays, config.sampling, &batch.jitter, None);
+    let mut points = Vec::new();
+    for ((ray, depths), sdf) in rays.iter().zip(&samples.left_out).zip(&samples.left_out_sdf) {
+        for (&depth, &sdf) in depths.iter().zip(sdf) {
+            if sdf.abs() < near {
+                points.extend(ray.at(depth));
+            }
+        }
+    }
+    let field = FieldSamples::evaluate(model, params, &batch.level_weight, points, batch.fd_step);
+    let left_out: usize = samples.left_out.iter().map(Vec::len).sum();
+    println!("{} of {left_out} samples left out lie within {near} of the surface", field.len());
+    assert!(field.len() > 50 && field.len() < left_out, "{} of {left_out}", field.len());
+    let every_samples = (batch.rays.len() * (config.sampling.coarse + config.sampling.fine)) as f64;
+    let mut truth = rendered_only;
+    for (i, &laplacian) in field.laplacians.iter().enumerate() {
+        let g = &field.gradients[3 * i..3 * i + 3];
+        truth[Term::Eikonal] += eikonal([g[0], g[1], g[2]]).0 as f64 / every_samples;
+        truth[Term::Curvature] += curvature(laplacian).0 as f64 / every_samples;
+    }
+    let regularised = with(near);
+    // Every sample left out near the surface or none: the terms of every sample rendered.
+    let everywhere = with(f32::INFINITY);
+    let every_rendered = step(rmvp_recon::volume::Sampling { min_weight: 0.0, ..config.sampling });
+    for term in [Term::Eikonal, Term::Curvature] {
+        let (value, truth, rendered) = (regularised[term], truth[term], rendered_only[term]);
+        println!("{term:?}: near the surface {value:.5}, reference {truth:.5}, the rendered samples' {rendered:.5}");
+        assert!((value - truth).abs() < 1e-4 * truth, "{term:?}: {value} against {truth}");
+        assert!(truth - rendered > 0.02 * truth, "{term:?}: the samples near the surface are a real share of it");
+        let (all, reference) = (everywhere[term], every_rendered[term]);
+        println!("{term:?}: every sample left out {all:.5}, every sample rendered {reference:.5}");
+        assert!((all - reference).abs() < 1e-4 * reference, "{term:?}: {all} against {reference}");
+    }
+    assert_eq!(regularised[Term::Mask], rendered_only[Term::Mask], "the rendering is the same");
 }
 
 #[test]
