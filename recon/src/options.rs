@@ -76,9 +76,9 @@ pub struct ReconOptions {
     /// Of the samples a step leaves out along each ray (`--min-sample-weight`), one in N, from
     /// a random start, still carries the Eikonal and curvature terms, for N of them, where it
     /// lies 0.05 or more inside the surface: the object's inside keeps the regularisers that
-    /// rendering every sample gives it (at 8 the Mitsuba spot 4.69 -> 4.54 degrees over seeds
-    /// 0-4 for 2-7 % more time, but the Mitsuba set's mean 5.52 -> 5.54 and ours 7.95 ->
-    /// 8.11); 0: none (default: every preset's).
+    /// rendering every sample gives it (without `--regularise-near-surface`, at 8 the Mitsuba
+    /// spot 4.69 -> 4.54 degrees over seeds 0-4 for 2-7 % more time, but the Mitsuba set's
+    /// mean 5.52 -> 5.54 and ours 7.95 -> 8.11); 0: none (default: every preset's).
     #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
     pub regularise_inside_every: Option<usize>,
     /// The samples a step leaves out (`--min-sample-weight`) within this distance of the
