@@ -583,8 +583,7 @@ fn regularises_left_out_samples_as_if_each_were_rendered(region: LeftOut) {
 #[test]
 fn the_regularisers_see_every_sample_a_step_leaves_near_the_surface_as_if_it_were_rendered() {
     use rmvp_recon::losses::{curvature, eikonal, Term};
-    use rmvp_recon::samples::FieldSamples;
-    use rmvp_recon::volume::weighted_samples;
+    use rmvp_recon::volume::{weighted_samples, Sampling};
     let (mut config, set) = spot_steps(200);
     config.sampling.regularised_left_out = 0;
     let near = config.sampling.regularise_near_surface;
@@ -593,13 +592,12 @@ fn the_regularisers_see_every_sample_a_step_leaves_near_the_surface_as_if_it_wer
     let mut rng = Rng::for_pixel(11 + rmvp_testkit::test_seed(), 0, 0);
     let batch = random_batch(&trainer, &mut rng, false, None);
     let (model, params) = (&trainer.model, &trainer.params);
-    let step = |sampling: rmvp_recon::volume::Sampling| {
+    let step = |sampling: Sampling| {
         let config = TrainConfig { sampling, ..config.clone() };
         let mut grad = vec![0f32; params.len()];
         CpuStep.gradient(model, params, &set, &config, &batch, &mut grad).losses
     };
-    let with =
-        |distance: f32| step(rmvp_recon::volume::Sampling { regularise_near_surface: distance, ..config.sampling });
+    let with = |distance: f32| step(Sampling { regularise_near_surface: distance, ..config.sampling });
     // The reference: the rendered samples' terms and each left-out sample's own within the
     // distance, by the SDF the sampling found, normalised as rendering every sample does.
     let rendered_only = with(0.0);
@@ -627,7 +625,7 @@ fn the_regularisers_see_every_sample_a_step_leaves_near_the_surface_as_if_it_wer
     let regularised = with(near);
     // Every sample left out near the surface or none: the terms of every sample rendered.
     let everywhere = with(f32::INFINITY);
-    let every_rendered = step(rmvp_recon::volume::Sampling { min_weight: 0.0, ..config.sampling });
+    let every_rendered = step(Sampling { min_weight: 0.0, ..config.sampling });
     for term in [Term::Eikonal, Term::Curvature] {
         let (value, truth, rendered) = (regularised[term], truth[term], rendered_only[term]);
         println!("{term:?}: near the surface {value:.5}, reference {truth:.5}, the rendered samples' {rendered:.5}");
