@@ -28,7 +28,6 @@
 //! Variants not run by default, each the default with one change (`VARIANTS`): `near-surface`
 //! 24 uniform and 40 up-sampled samples per ray instead of 32 and 32 (the same samples, more of
 //! them near the surface); `wide-margin` the masks dilated by 32 pixels instead of 8;
-//! `level-rates` hash-grid level `l` learning at `0.9^l` of the coarsest level's rate;
 //! `learned-polarization` and `fixed-polarization` the specular lobe's degree of polarization
 //! scaled by a learned number, or NeRSP's fixed dielectric Fresnel. A variant of one's own is
 //! `NAME:FIELD=VALUE;...` with any `rmvp recon` option by its field name
@@ -207,13 +206,12 @@ fn plan() -> Plan {
 
 /// The named variants: each the plan's options with the changes given, as TOML assignments
 /// of [`ReconOptions`] fields.
-const VARIANTS: [(&str, &str); 8] = [
+const VARIANTS: [(&str, &str); 7] = [
     ("full", ""),
     ("no-geometric", "no_geometric = true"),
     ("no-photometric", "no_photometric = true"),
     ("near-surface", "coarse_samples = 24\nfine_samples = 40"),
     ("wide-margin", "margin = 32"),
-    ("level-rates", "grid_level_decay = 0.9"),
     ("learned-polarization", "learned_polarization = true"),
     ("fixed-polarization", "learned_polarization = false"),
 ];

@@ -274,9 +274,9 @@ fn plans_with_impossible_values_loops_or_too_many_tasks_are_refused_at_plan_time
         ),
         ("options = { curvature_weight = -0.01 }\n", 3, "the curvature term's weight must be a number of at least 0"),
         (
-            "options = { regularise_near_surface = -0.05 }\n",
+            "options = { min_sample_weight = 1.5 }\n",
             3,
-            "the distance from the surface within which left-out samples are regularised must be a number of at least 0",
+            "the least weight of a rendered sample must be a number from 0 up to 1",
         ),
         (
             "options = { initial_radius = 1.5 }\n",

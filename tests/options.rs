@@ -6,7 +6,7 @@
 use clap::Parser;
 use rmvp_pipeline::batch::plan::BatchPlan;
 use rmvp_recon::checkpoint::recorded_options;
-use rmvp_recon::options::{ReconOptions, RunControl};
+use rmvp_recon::options::{ReconOptions, RunControl, REMOVED_OPTIONS};
 use rmvp_recon::reconstruct::{reconstruct, CHECKPOINT};
 use std::ops::ControlFlow;
 
@@ -28,17 +28,10 @@ fn changed(field: &str) -> (&'static str, &'static str) {
         "iters" => ("3", "3"),
         "no_geometric" | "no_photometric" | "mesh_only" | "keep_unseen_parts" => ("", "true"),
         "batch" => ("48", "48"),
-        "samples_per_step" => ("2000", "2000"),
         "coarse_samples" => ("20", "20"),
         "fine_samples" => ("12", "12"),
         "min_sample_weight" => ("0.001", "0.001"),
-        "regularised_left_out" => ("2", "2"),
-        "regularise_left_out_every" => ("16", "16"),
-        "regularise_inside_every" => ("4", "4"),
-        "regularise_near_surface" => ("0.02", "0.02"),
         "margin" => ("5", "5"),
-        "grid_level_decay" => ("0.8", "0.8"),
-        "aop_reliability" => ("0.05", "0.05"),
         "tangent_robust_angle" => ("10", "10.0"),
         "tangent_views" => ("6", "6"),
         "curvature_weight" => ("0.02", "0.02"),
@@ -133,4 +126,30 @@ fn resuming_with_other_options_names_them_and_the_mesh_options_may_change() {
         "{err}"
     );
     run(&["--resume", "--mesh-res", "24", "--checkpoint-every", "1"], ok);
+}
+
+#[test]
+fn an_option_that_was_removed_is_refused_in_plans_and_the_bench_saying_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    rmvp_testkit::copy_tree(&rmvp_testkit::fixture("spot_nersp"), &tmp.path().join("spot"));
+    let plan = tmp.path().join("batch.toml");
+    let fields = fields();
+    for (name, _) in REMOVED_OPTIONS {
+        assert!(!fields.iter().any(|f| f == name), "{name} is still an option");
+        let help = ok(&["recon", "--help"]);
+        assert!(!help.contains(&format!("--{} ", name.replace('_', "-"))), "rmvp recon still has --{name}");
+        let removed = format!("`{name}` was removed");
+        let err = ReconOptions::default().with_toml(&format!("{name} = 1")).expect_err(name);
+        assert!(err.contains(&removed), "{err}");
+        std::fs::write(
+            &plan,
+            format!("datasets = [\"spot\"]\n[evaluation]\nenabled = false\n[[variant]]\nname = \"v\"\noptions = {{ {name} = 1 }}\n"),
+        )
+        .unwrap();
+        let err = BatchPlan::read(&plan).expect_err(name).to_string();
+        assert!(err.contains(&removed) && err.contains("batch.toml") && err.contains("line 6"), "{err}");
+    }
+    // An option another name away from a removed one is refused as unknown, as any other.
+    let err = ReconOptions::default().with_toml("regularise_near_surfaces = 0").expect_err("unknown");
+    assert!(err.contains("unknown field") && !err.contains("was removed"), "{err}");
 }

@@ -502,8 +502,10 @@ fn reconstruct(
     resume: bool,
     stop_after: Option<u32>,
 ) -> PyResult<(u32, u32)> {
-    let options: ReconOptions =
-        serde_json::from_str(options).map_err(|e| error(py, Kind::Option, format!("options: {e}"), None))?;
+    let options = serde_json::from_str(options)
+        .map_err(|e| e.to_string())
+        .and_then(ReconOptions::from_recorded)
+        .map_err(|e| error(py, Kind::Option, format!("options: {e}"), None))?;
     let scene = any_scene(py, scene)?;
     let control = RunControl { resume, stop_after };
     let mut raised: Option<PyErr> = None;

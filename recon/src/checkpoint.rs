@@ -20,7 +20,6 @@ pub fn save(trainer: &Trainer, options: Option<&ReconOptions>, path: &Path) -> R
         config: trainer.config.clone(),
         options: options.cloned(),
         iteration: trainer.iteration,
-        rays: trainer.rays,
         adam_steps: trainer.adam.steps,
         parameters: trainer.params.len(),
         occupancy: occupancy.len(),
@@ -91,18 +90,7 @@ pub fn load(path: &Path, set: TrainingSet, config: &TrainConfig, options: Option
     if grid.as_ref().is_some_and(|g| g.values().iter().any(|v| !v.is_finite())) {
         return Err(bad("non-finite occupancy grid"));
     }
-    // A run whose rays follow its samples goes on with the rays it reached; otherwise the
-    // configuration's.
-    let range = config.ray_range();
-    let rays = match header.rays {
-        0 => config.batch_rays,
-        rays if range.contains(&rays) => rays,
-        rays => {
-            let (least, most) = range.into_inner();
-            return Err(bad(&format!("{rays} rays for the next step, the run renders {least} to {most}")));
-        }
-    };
-    trainer.restore(floats[..n].to_vec(), adam, (header.iteration, rays), grid);
+    trainer.restore(floats[..n].to_vec(), adam, header.iteration, grid);
     Ok(trainer)
 }
 
@@ -155,12 +143,13 @@ fn checkpoint_header(path: &Path) -> Result<(CheckpointHeader, usize, u64)> {
 struct CheckpointHeader {
     format: String,
     config: TrainConfig,
-    #[serde(default, skip_serializing_if = "Option::is_none")]
+    #[serde(
+        default,
+        skip_serializing_if = "Option::is_none",
+        deserialize_with = "crate::options::deserialize_recorded_option"
+    )]
     options: Option<ReconOptions>,
     iteration: u32,
-    /// Rays of the next step (0: the configuration's `batch_rays`).
-    #[serde(default)]
-    rays: usize,
     adam_steps: u32,
     parameters: usize,
     /// Values of the occupancy grid after the optimiser state (0: none).

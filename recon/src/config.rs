@@ -18,14 +18,8 @@ pub struct TrainConfig {
     pub model: ModelConfig,
     /// Total iterations.
     pub iterations: u32,
-    /// Rays per iteration: every step's, or the first's where `samples_per_step` is set.
+    /// Rays per iteration.
     pub batch_rays: usize,
-    /// Samples a step should render: each step's rays are those of the step before scaled by
-    /// this over the samples that step rendered (instant-NGP's dynamic batch), between
-    /// [`RAYS_RANGE`] times fewer and more than `batch_rays`; 0: every step renders
-    /// `batch_rays` rays.
-    #[serde(default)]
-    pub samples_per_step: usize,
     /// Samples per ray.
     pub sampling: Sampling,
     /// Optimiser.
@@ -36,10 +30,6 @@ pub struct TrainConfig {
     pub photometric: bool,
     /// Use the geometric cue (off: PANDORA-like, photometric only).
     pub geometric: bool,
-    /// The DoP at which a view's geometric term has half its weight (`dop^2 / (dop^2 + r^2)`);
-    /// 0 weights every view that sees a point alike (NeRSP).
-    #[serde(default)]
-    pub aop_reliability: f32,
     /// The geometric loss turns each normal about the rays of the views only (its gradient's
     /// azimuthal part); off: NeRSP's full gradient, which also tilts normals towards cameras.
     #[serde(default)]
@@ -64,6 +54,12 @@ pub struct TrainConfig {
     pub background_share: f32,
     /// Hash-grid levels active at the start; one more every `anneal_every` iterations.
     pub start_levels: usize,
+    /// The curvature weight follows the coarse-to-fine schedule (Neuralangelo): it ramps up
+    /// from 0 over the learning rate's warm-up, then falls as the hash grid's levels open, in
+    /// proportion to the finest active level's cell, from `weights` at the start levels; off,
+    /// `weights` holds throughout.
+    #[serde(default)]
+    pub curvature_follows_levels: bool,
     /// Iterations between two hash-grid levels.
     pub anneal_every: u32,
     /// Random seed.
@@ -74,48 +70,6 @@ pub struct TrainConfig {
     pub downscale: u32,
 }
 
-/// How far a step's rays may stray from `batch_rays` where they follow its samples: at most
-/// this many times fewer or more.
-pub const RAYS_RANGE: usize = 4;
-
-impl TrainConfig {
-    /// The rays a step of this run may render: within [`RAYS_RANGE`] of `batch_rays` where they
-    /// follow the samples, `batch_rays` alone where the count is fixed.
-    pub fn ray_range(&self) -> std::ops::RangeInclusive<usize> {
-        match self.samples_per_step {
-            0 => self.batch_rays..=self.batch_rays,
-            _ => self.batch_rays.div_ceil(RAYS_RANGE)..=self.batch_rays * RAYS_RANGE,
-        }
-    }
-
-    /// The rays of the step after one that rendered `samples` samples of `rays` rays: those
-    /// that would have rendered `samples_per_step` at the same samples per ray, within
-    /// [`TrainConfig::ray_range`].
-    pub fn next_rays(&self, rays: usize, samples: usize) -> usize {
-        let wanted = (rays as f64 * self.samples_per_step as f64 / samples.max(1) as f64).round() as usize;
-        let range = self.ray_range();
-        wanted.clamp(*range.start(), *range.end())
-    }
-}
-
 fn full_size() -> u32 {
     1
-}
-
-#[cfg(test)]
-mod tests {
-    use crate::presets::{training, Preset};
-
-    #[test]
-    fn a_steps_rays_follow_the_samples_per_ray_of_the_step_before_within_their_range() {
-        let mut config = training(Preset::Fast, 100);
-        config.batch_rays = 256;
-        assert_eq!(config.next_rays(100, 9000), 256, "a fixed count stays fixed");
-        config.samples_per_step = 4096;
-        assert_eq!(config.next_rays(256, 8192), 128);
-        assert_eq!(config.next_rays(300, 2400), 512);
-        assert_eq!(config.next_rays(256, 3000), 350, "rounded to the nearest ray");
-        assert_eq!(config.next_rays(256, 1 << 20), 64, "a quarter of the batch at least");
-        assert_eq!(config.next_rays(256, 0), 1024, "four times the batch at most");
-    }
 }

@@ -4,9 +4,6 @@
 //! sin(phi) y_r`; diffuse reflection puts the normal in the plane of `d` and `e` (`n . t = 0`
 //! with `t = d x e`), specular reflection in the plane of `d` and `t` (`n . e = 0`). The loss is
 //! `(n . t)^2 (n . e)^2` averaged over the views that see the point (sphere tracing the SDF).
-//! Optionally each view's term is weighted by how far its AoP can be trusted,
-//! `dop^2 / (dop^2 + r^2)` for a reliability DoP `r`: where the diffuse and specular
-//! polarizations nearly cancel, the AoP of a real (microfacet) surface strays from both planes.
 
 use crate::data::{TrainView, TrainingSet};
 use crate::engine::vector::{cross, dot};
@@ -15,7 +12,7 @@ use crate::ray::unit_sphere_span;
 use crate::samples::FieldSamples;
 use crate::trace::{sphere_trace, TraceLimits, TraceRay};
 use nalgebra::Vector3;
-use rmvp_dataset::{polarization, Camera};
+use rmvp_dataset::Camera;
 
 /// The two tangent directions one view gives at a surface point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -24,8 +21,6 @@ pub struct Tangents {
     pub t: [f32; 3],
     /// `e`, the polarization direction (zero for specular reflection).
     pub t_hat: [f32; 3],
-    /// The view's weight in the average, in `[0, 1]`.
-    pub weight: f32,
 }
 
 /// What the geometric cue reads at one surface point.
@@ -37,27 +32,10 @@ pub struct PointTangents {
     pub curvature_share: f32,
 }
 
-/// The weight of a view whose pixel has degree of polarization `dop`, for the reliability DoP
-/// `reliability` (the DoP at half weight; 0 weights every view fully).
-pub fn aop_weight(dop: f32, reliability: f32) -> f32 {
-    if reliability <= 0.0 {
-        return 1.0;
-    }
-    let d2 = dop * dop;
-    d2 / (d2 + reliability * reliability)
-}
-
 /// Pixel `k`'s measured `(S0, S1, S2)`, each the mean of its three colour channels.
 fn channel_means(view: &TrainView, k: usize) -> [f32; 3] {
     let stokes = &view.stokes[9 * k..9 * k + 9];
     [0, 1, 2].map(|s| stokes[3 * s..3 * s + 3].iter().sum::<f32>() / 3.0)
-}
-
-/// DoP of pixel `k`'s channel-mean Stokes target, as its AoP is taken (the targets' common
-/// scale cancels).
-fn pixel_dop(view: &TrainView, k: usize) -> f32 {
-    let [s0, s1, s2] = channel_means(view, k);
-    polarization::dop(s0, s1, s2)
 }
 
 fn normalize(a: [f32; 3]) -> [f32; 3] {
@@ -86,7 +64,7 @@ pub fn curved_robust_scale(robust: f32, share: f32) -> f32 {
     }
 }
 
-/// The loss `weight rho((n.t)^2 (n.t_hat)^2)` averaged over `views`, and its gradient with
+/// The loss `rho((n.t)^2 (n.t_hat)^2)` averaged over `views`, and its gradient with
 /// respect to the (unnormalised) normal `n`; `rho(l) = l` for a `robust` scale of 0, else
 /// Geman-McClure's `c l / (l + c)`, which weighs a view whose AoP strays far from the normal's
 /// planes less. With `azimuth_only`, each view's gradient keeps only its component that turns
@@ -106,8 +84,8 @@ pub fn tangent_loss(n: [f32; 3], views: &[Tangents], azimuth_only: bool, robust:
         } else {
             (plain, 1.0)
         };
-        loss += v.weight * term;
-        let scale = 2.0 * v.weight * slope;
+        loss += term;
+        let scale = 2.0 * slope;
         let g = [0, 1, 2].map(|k| scale * (a * b * b * v.t[k] + a * a * b * v.t_hat[k]));
         let g = if azimuth_only {
             // The ray is t_hat x t; turning u about it moves it along ray x u.
@@ -160,7 +138,7 @@ struct Query {
 
 /// For each surface point (unit frame) with its outward normal, the tangents of every training
 /// view that sees it (in front of the camera, inside the image and the view's mask, facing the
-/// camera and not occluded by the SDF), each weighted by [`aop_weight`] of its pixel's DoP.
+/// camera and not occluded by the SDF).
 /// When the model's specular lobe tilts ([`crate::model::Radiance::off_axis`]), the part of
 /// each view's `(S1, S2)` that the tilt predicts, times the point's [`correction_share`], is
 /// taken away before the AoP gives the tangents. Each point's [`correction_share`] is returned
@@ -173,7 +151,6 @@ struct Query {
 #[allow(clippy::too_many_arguments)]
 pub fn tangents(
     set: &TrainingSet,
-    reliability: f32,
     model: &Model,
     params: &[f32],
     level_weight: &[f32],
@@ -253,7 +230,6 @@ pub fn tangents(
         out[q.point].views.push(Tangents {
             t: set.frame.dir_from_world(&t),
             t_hat: set.frame.dir_from_world(&e),
-            weight: aop_weight(pixel_dop(view, q.pixel), reliability),
         });
     }
     out
@@ -454,17 +430,9 @@ mod tests {
         assert!((shares[0] - shares[1]).abs() > 0.01, "the two points' shares differ: {shares:?}");
     }
 
-    #[test]
-    fn aop_weight_is_half_at_the_reliability_dop_and_one_without_it() {
-        assert_eq!(aop_weight(0.3, 0.0), 1.0);
-        assert!((aop_weight(0.05, 0.05) - 0.5).abs() < 1e-6);
-        assert_eq!(aop_weight(0.0, 0.05), 0.0);
-        assert!((aop_weight(0.2, 0.05) - 0.04 / 0.0425).abs() < 1e-6);
-    }
-
     /// The tangents of a view along `d` whose AoP points along `e` (both unit, `e` across `d`).
     fn view(d: [f32; 3], e: [f32; 3]) -> Tangents {
-        Tangents { t: cross(d, e), t_hat: e, weight: 1.0 }
+        Tangents { t: cross(d, e), t_hat: e }
     }
 
     #[test]
@@ -508,17 +476,6 @@ mod tests {
         // NeRSP's gradient descends towards the camera (at -d): n.d falls.
         assert!(dot(full, d) > 1e-2, "{full:?}");
         assert!(turning.iter().all(|g| g.abs() < 1e-6), "{turning:?}");
-    }
-
-    #[test]
-    fn a_view_of_weight_zero_adds_nothing_to_the_sum() {
-        let n = [0.3f32, 0.5, 0.8];
-        let view = Tangents { t: [1.0, 0.0, 0.0], t_hat: [0.0, 1.0, 0.0], weight: 1.0 };
-        let ignored = Tangents { t: [0.0, 0.0, 1.0], t_hat: [0.0, 1.0, 0.0], weight: 0.0 };
-        let (alone, _) = tangent_loss(n, &[view], false, 0.0);
-        let (both, _) = tangent_loss(n, &[view, ignored], false, 0.0);
-        assert!(alone > 0.0);
-        assert!((both - alone / 2.0).abs() < 1e-7, "{both} vs {alone}");
     }
 
     #[test]

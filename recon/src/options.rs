@@ -37,12 +37,6 @@ pub struct ReconOptions {
     /// Rays per iteration (default: the preset's; fast 256, dense and paper 512).
     #[cfg_attr(feature = "clap", arg(long))]
     pub batch: Option<usize>,
-    /// Samples a step should render: each step's rays follow the samples per ray of the step
-    /// before, from `--batch` rays at the first and within 4 times fewer or more (instant-NGP's
-    /// dynamic batch; a step costs about what its samples cost); 0: every step renders
-    /// `--batch` rays (default: the preset's; 0).
-    #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
-    pub samples_per_step: Option<usize>,
     /// Uniform samples per ray between near and far (default: the preset's; fast 32).
     #[cfg_attr(feature = "clap", arg(long))]
     pub coarse_samples: Option<usize>,
@@ -54,47 +48,9 @@ pub struct ReconOptions {
     /// preset's; fast and dense 1e-4, paper 0).
     #[cfg_attr(feature = "clap", arg(long, value_name = "WEIGHT"))]
     pub min_sample_weight: Option<f32>,
-    /// Of the samples a step leaves out (`--min-sample-weight`) behind the last one a ray
-    /// renders, in space that ray does not see, this many per ray, drawn at random, still carry
-    /// the curvature term for their share of them, where they lie outside the surface by 0.05
-    /// or more: space no view sees past takes the field of the space around it, so that a
-    /// turntable capture grows less of a blob under its object (our ring seen only from above:
-    /// Chamfer 0.0156 and 0.0155 at seeds 0-1 with 0; 0.0045, 0.0083 and 0.0153 at seeds 0-2
-    /// with 2; `--min-sample-weight 0` carves it at each, for twice the time); 0: the rendered
-    /// samples alone (default: the preset's; fast 2, dense and paper 0).
-    #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
-    pub regularised_left_out: Option<usize>,
-    /// Of the samples a step leaves out along each ray (`--min-sample-weight`), one in N, from
-    /// a random start, still carries the curvature term, for N of them, as if every sample were
-    /// rendered: for an object whose underside no view sees, it carves what `--min-sample-weight
-    /// 0` carves, for a few per cent more time instead of twice, and rounds sharp edges (our
-    /// ring seen only from above: Chamfer 0.0045, 0.0083 and 0.0153 at seeds 0-2 with 0,
-    /// 0.0033, 0.0036 and 0.0038 with 16; the Mitsuba set's mean normal error 5.58 -> 5.85
-    /// degrees); 0: none (default: every preset's).
-    #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
-    pub regularise_left_out_every: Option<usize>,
-    /// Of the samples a step leaves out along each ray (`--min-sample-weight`), one in N, from
-    /// a random start, still carries the Eikonal and curvature terms, for N of them, where it
-    /// lies 0.05 or more inside the surface: the object's inside keeps the regularisers that
-    /// rendering every sample gives it (without `--regularise-near-surface`, at 8 the Mitsuba
-    /// spot 4.69 -> 4.54 degrees over seeds 0-4 for 2-7 % more time, but the Mitsuba set's
-    /// mean 5.52 -> 5.54 and ours 7.95 -> 8.11); 0: none (default: every preset's).
-    #[cfg_attr(feature = "clap", arg(long, value_name = "N"))]
-    pub regularise_inside_every: Option<usize>,
-    /// The samples a step leaves out (`--min-sample-weight`) within this distance of the
-    /// surface, in the unit sphere, by the SDF the sampling found, still carry the Eikonal and
-    /// curvature terms, each for itself, as if rendered: the field just off the surface keeps
-    /// the smoothing that rendering every sample gives it, and a smooth object's normals do not
-    /// ripple; 0: the rendered samples alone (default: the preset's; fast and dense 0.05).
-    #[cfg_attr(feature = "clap", arg(long, value_name = "DISTANCE"))]
-    pub regularise_near_surface: Option<f32>,
     /// Dilation of the masks that object rays are drawn from, pixels (default: the preset's, 8).
     #[cfg_attr(feature = "clap", arg(long))]
     pub margin: Option<usize>,
-    /// Learning rate of hash-grid level `l` relative to level 0, `decay^l` (default: the
-    /// preset's, 1).
-    #[cfg_attr(feature = "clap", arg(long))]
-    pub grid_level_decay: Option<f32>,
     /// Learn one scale of the specular lobe's degree of polarization for the object (a
     /// conductor's reflection is nearly unpolarized); `false` keeps NeRSP's fixed dielectric
     /// Fresnel; default: the preset's (fixed). The value learned is in log.jsonl
@@ -106,10 +62,6 @@ pub struct ReconOptions {
     /// normalised diffuse).
     #[cfg_attr(feature = "clap", arg(long, num_args = 0..=1, default_missing_value = "true"))]
     pub diffuse_transmission: Option<bool>,
-    /// Weight each view's AoP tangent term by `dop^2 / (dop^2 + R^2)` of its pixel, R the DoP at
-    /// half weight (default: the preset's, 0: every view alike, as NeRSP).
-    #[cfg_attr(feature = "clap", arg(long, value_name = "R"))]
-    pub aop_reliability: Option<f32>,
     /// Let the AoP tangent loss turn normals about the views' rays only, never tilt them towards
     /// a camera; default: the preset's (on in fast and dense; off in paper, NeRSP's full
     /// gradient).
@@ -139,8 +91,10 @@ pub struct ReconOptions {
     pub specular_tilt: Option<bool>,
     /// Weight of the curvature term, the SDF's mean absolute Laplacian over the samples
     /// (Neuralangelo's smoothing against the hash grid's noise): more rounds a smooth object's
-    /// fine ripple away and a sharp one's creases with it; default: the preset's (0.005 in fast
-    /// and dense, 0 in paper).
+    /// fine ripple away and a sharp one's creases with it. In the fast preset the weight while
+    /// the coarse hash-grid levels alone are open, falling as the finer ones open to a fifth of
+    /// it; in the others the weight throughout. Default: the preset's (fast 0.015, dense
+    /// 0.005, paper 0).
     #[cfg_attr(feature = "clap", arg(long, value_name = "WEIGHT"))]
     pub curvature_weight: Option<f32>,
     /// Radius of the sphere the SDF starts from, in the scene's unit sphere; the surface grows
@@ -188,19 +142,12 @@ impl Default for ReconOptions {
             no_geometric: false,
             no_photometric: false,
             batch: None,
-            samples_per_step: None,
             coarse_samples: None,
             fine_samples: None,
             min_sample_weight: None,
-            regularised_left_out: None,
-            regularise_left_out_every: None,
-            regularise_inside_every: None,
-            regularise_near_surface: None,
             margin: None,
-            grid_level_decay: None,
             learned_polarization: None,
             diffuse_transmission: None,
-            aop_reliability: None,
             tangent_azimuth_only: None,
             tangent_robust_angle: None,
             tangent_views: None,
@@ -215,6 +162,43 @@ impl Default for ReconOptions {
             keep_unseen_parts: false,
             checkpoint_every: 500,
         }
+    }
+}
+
+/// The options earlier versions of rmvp took and this one does not, each with what took its
+/// place: each preset holds one setting for every object (what they measured:
+/// `docs/experiments.md`). Options read from a file ([`ReconOptions::from_recorded`]) that set
+/// one are refused in these words.
+pub const REMOVED_OPTIONS: [(&str, &str); 7] = [
+    ("samples_per_step", "every step renders the preset's rays, `batch`"),
+    ("regularised_left_out", "the fast preset regularises two samples per ray behind the surface"),
+    ("regularise_left_out_every", "no preset regularised the samples left out so"),
+    ("regularise_inside_every", "no preset regularised the object's inside so"),
+    ("regularise_near_surface", "the fast and dense presets regularise the samples within 0.05 of the surface"),
+    ("grid_level_decay", "every hash-grid level learns at the same rate"),
+    ("aop_reliability", "every view's AoP tangent term weighs alike, as NeRSP's"),
+];
+
+/// The words refusing `name`, one of [`REMOVED_OPTIONS`] (None for any other name).
+pub fn removed_option(name: &str) -> Option<String> {
+    let (_, instead) = REMOVED_OPTIONS.iter().find(|(removed, _)| *removed == name)?;
+    Some(format!("the option `{name}` was removed from rmvp ({instead}): delete it"))
+}
+
+/// Deserialize [`ReconOptions`] as [`ReconOptions::from_recorded`] reads them (for
+/// `#[serde(deserialize_with)]` on a field of a file's record).
+pub fn deserialize_recorded<'de, D: serde::Deserializer<'de>>(deserializer: D) -> std::result::Result<ReconOptions, D::Error> {
+    let value = serde_json::Value::deserialize(deserializer)?;
+    ReconOptions::from_recorded(value).map_err(serde::de::Error::custom)
+}
+
+/// [`deserialize_recorded`] for an optional field.
+pub fn deserialize_recorded_option<'de, D: serde::Deserializer<'de>>(
+    deserializer: D,
+) -> std::result::Result<Option<ReconOptions>, D::Error> {
+    match Option::<serde_json::Value>::deserialize(deserializer)? {
+        None | Some(serde_json::Value::Null) => Ok(None),
+        Some(value) => ReconOptions::from_recorded(value).map(Some).map_err(serde::de::Error::custom),
     }
 }
 
@@ -246,16 +230,10 @@ impl ReconOptions {
             "the uniform samples per ray must be at least 1"
         } else if self.min_sample_weight.is_some_and(|w| !(w.is_finite() && (0.0..1.0).contains(&w))) {
             "the least weight of a rendered sample must be a number from 0 up to 1"
-        } else if self.regularise_near_surface.is_some_and(|d| !(d.is_finite() && d >= 0.0)) {
-            "the distance from the surface within which left-out samples are regularised must be a number of at least 0"
         } else if self.checkpoint_every == 0 {
             "the iterations between checkpoints must be at least 1"
         } else if self.downscale == 0 {
             "the training downscale factor must be at least 1"
-        } else if self.grid_level_decay.is_some_and(|d| !(d.is_finite() && d > 0.0)) {
-            "the hash-grid levels' learning-rate decay must be a positive number"
-        } else if self.aop_reliability.is_some_and(|r| !(r.is_finite() && r >= 0.0)) {
-            "the AoP's reliability DoP must be a number of at least 0"
         } else if self.tangent_robust_angle.is_some_and(|a| !(a.is_finite() && (0.0..=45.0).contains(&a))) {
             "the tangent term's robust angle must be a number of degrees from 0 to 45"
         } else if self.curvature_weight.is_some_and(|w| !(w.is_finite() && w >= 0.0)) {
@@ -280,13 +258,32 @@ impl ReconOptions {
             .collect()
     }
 
+    /// Options as a file records them (a batch plan's variant, a checkpoint, a dataset's build
+    /// record): an option of [`REMOVED_OPTIONS`] that an earlier rmvp wrote unset (`null`) is
+    /// passed over; one set to a value is refused in [`removed_option`]'s words, and any
+    /// other fault in serde's.
+    pub fn from_recorded(value: serde_json::Value) -> std::result::Result<ReconOptions, String> {
+        let mut value = value;
+        if let serde_json::Value::Object(fields) = &mut value {
+            for (name, _) in REMOVED_OPTIONS {
+                match fields.get(name) {
+                    Some(serde_json::Value::Null) => drop(fields.remove(name)),
+                    Some(_) => return Err(removed_option(name).expect("a removed option")),
+                    None => {}
+                }
+            }
+        }
+        serde_json::from_value(value).map_err(|e| e.to_string())
+    }
+
     /// These options with some changed by TOML assignments (`learned_polarization = true`, one
     /// per line, the fields' names): how the quality bench writes its variants.
     pub fn with_toml(&self, assignments: &str) -> std::result::Result<ReconOptions, String> {
         let changes: toml::Table = toml::from_str(assignments).map_err(|e| e.message().trim().to_string())?;
         let mut table = toml::Table::try_from(self).map_err(|e| e.to_string())?;
         table.extend(changes);
-        table.try_into().map_err(|e: toml::de::Error| e.message().trim().to_string())
+        let value = serde_json::to_value(table).map_err(|e| e.to_string())?;
+        ReconOptions::from_recorded(value)
     }
 
     /// The iterations this run trains.
@@ -304,9 +301,6 @@ impl ReconOptions {
         if let Some(b) = self.batch {
             config.batch_rays = b;
         }
-        if let Some(n) = self.samples_per_step {
-            config.samples_per_step = n;
-        }
         if let Some(n) = self.coarse_samples {
             config.sampling.coarse = n;
         }
@@ -316,32 +310,14 @@ impl ReconOptions {
         if let Some(w) = self.min_sample_weight {
             config.sampling.min_weight = w;
         }
-        if let Some(n) = self.regularised_left_out {
-            config.sampling.regularised_left_out = n;
-        }
-        if let Some(n) = self.regularise_left_out_every {
-            config.sampling.regularise_left_out_every = n;
-        }
-        if let Some(n) = self.regularise_inside_every {
-            config.sampling.regularise_inside_every = n;
-        }
-        if let Some(distance) = self.regularise_near_surface {
-            config.sampling.regularise_near_surface = distance;
-        }
         if let Some(m) = self.margin {
             config.margin = m;
-        }
-        if let Some(d) = self.grid_level_decay {
-            config.adam.grid_level_decay = d;
         }
         if let Some(learned) = self.learned_polarization {
             config.model.learned_polarization = learned;
         }
         if let Some(on) = self.diffuse_transmission {
             config.model.diffuse_transmission = on;
-        }
-        if let Some(reliability) = self.aop_reliability {
-            config.aop_reliability = reliability;
         }
         if let Some(on) = self.tangent_azimuth_only {
             config.tangent_azimuth_only = on;

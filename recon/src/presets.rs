@@ -40,10 +40,17 @@ impl Preset {
     }
 }
 
-/// Curvature weight of the fast and dense presets: measured on the evaluation set
+/// Curvature weight of the dense preset throughout: measured on the evaluation set
 /// (`docs/benchmarks.md`): 5e-3 lowered the normal error on all six scenes against 5e-4, 1e-2
 /// raised it again on the gear and the bowl.
 pub const CURVATURE_WEIGHT: f32 = 5e-3;
+
+/// Curvature weight of the fast preset while only its coarse hash-grid levels are open; it
+/// falls as the finer ones open, in proportion to the finest open level's cell
+/// ([`TrainConfig::curvature_follows_levels`], Neuralangelo's schedule), to about 3.1e-3 with
+/// all eight: a smooth shape settles under the coarse levels' strong smoothing, and edges
+/// come with the fine levels' weak one (`docs/design.md`, coarse to fine).
+pub const FAST_CURVATURE_WEIGHT: f32 = 1.5e-2;
 
 /// The fast preset's robust angle of the AoP tangent term, degrees, on curved surfaces
 /// ([`crate::geometric::curved_robust_scale`]): on the Mitsuba set (`docs/benchmarks.md`) spot
@@ -135,8 +142,6 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
                 steps: 4,
                 min_weight: 0.0,
                 regularised_left_out: 0,
-                regularise_left_out_every: 0,
-                regularise_inside_every: 0,
                 regularise_near_surface: 0.0,
             },
             AdamConfig {
@@ -145,7 +150,6 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
                 lr_variance: 5e-4,
                 warmup: 5000.min(iterations / 20),
                 final_fraction: 0.05,
-                grid_level_decay: 1.0,
             },
         ),
         Preset::Fast | Preset::Dense => (
@@ -158,8 +162,6 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
                 // The dense reference of 24 turntable views lost with them (Chamfer 0.0015 ->
                 // 0.0019, 533 -> 588 s on two threads; docs/benchmarks.md).
                 regularised_left_out: if preset == Preset::Fast { REGULARISED_LEFT_OUT } else { 0 },
-                regularise_left_out_every: 0,
-                regularise_inside_every: 0,
                 regularise_near_surface: REGULARISED_NEAR_SURFACE,
             },
             AdamConfig {
@@ -168,7 +170,6 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
                 lr_variance: 2e-3,
                 warmup: (iterations / 20).min(500),
                 final_fraction: 0.05,
-                grid_level_decay: 1.0,
             },
         ),
     };
@@ -176,18 +177,19 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         model,
         iterations,
         batch_rays,
-        samples_per_step: 0,
         sampling,
         adam,
         weights: LossWeights::from_fn(|term| match term {
             Term::Photometric | Term::Geometric | Term::Mask => 1.0,
             Term::Eikonal => 0.1,
-            Term::Curvature if preset != Preset::Paper => CURVATURE_WEIGHT,
-            Term::Curvature => 0.0,
+            Term::Curvature => match preset {
+                Preset::Fast => FAST_CURVATURE_WEIGHT,
+                Preset::Dense => CURVATURE_WEIGHT,
+                Preset::Paper => 0.0,
+            },
         }),
         photometric: true,
         geometric: true,
-        aop_reliability: 0.0,
         // NeRSP's full gradient also tilts normals towards the cameras wherever an AoP strays
         // from the normal's planes (docs/reconstruction.md).
         tangent_azimuth_only: preset != Preset::Paper,
@@ -199,6 +201,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         margin: 8,
         background_share: BACKGROUND_SHARE,
         start_levels,
+        curvature_follows_levels: preset == Preset::Fast,
         anneal_every,
         seed: 0,
         downscale: 1,

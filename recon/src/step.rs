@@ -30,6 +30,9 @@ pub struct Batch {
     pub level_weight: Vec<f32>,
     /// Finite-difference step of the normals.
     pub fd_step: f32,
+    /// The share of the curvature weight this step applies
+    /// ([`Trainer::curvature_share`](crate::train::Trainer::curvature_share)).
+    pub curvature_share: f32,
     /// In the diffuse-only warm-up.
     pub warm: bool,
     /// The geometric loss is on.
@@ -44,13 +47,6 @@ pub struct Batch {
     /// is rendered or none is drawn). Each stands for its share of those samples, so that the
     /// term's expected gradient is the one it has over all of them.
     pub left_out_draws: Vec<f32>,
-    /// For each ray, a number in `[0, 1)` that picks the first of the samples left out of the
-    /// step along it that the regularisers still see; after it, one in
-    /// [`Sampling::regularise_left_out_every`](crate::volume::Sampling) or
-    /// [`Sampling::regularise_inside_every`](crate::volume::Sampling) (empty where every
-    /// sample is rendered or none is regularised so). Each stands for that many samples, so that
-    /// over the starts the term's gradient is the one it has over all of them.
-    pub left_out_starts: Vec<f32>,
     /// For each ray, where the systematic sample of the views that the geometric loss compares
     /// with its surface point starts, in `[0, 1)` (empty where every view is compared:
     /// [`TrainConfig::tangent_views`] is 0 or at least the training set's views).
@@ -89,10 +85,10 @@ pub struct CpuStep;
 /// Rays per chunk of a batch; chunks run in parallel and are summed in order.
 const CHUNK_RAYS: usize = 32;
 
-/// The least distance from the surface (unit sphere) at which a sample a step leaves out is
-/// regularised: outside it, those drawn behind what a ray renders ([`Batch::left_out_draws`]);
-/// inside it, one in [`Sampling::regularise_inside_every`](crate::volume::Sampling). The
-/// surfaces' neighbourhoods are left to the samples rendered.
+/// The least distance outside the surface (unit sphere) at which a sample drawn behind what a
+/// ray renders ([`Batch::left_out_draws`]) is regularised: the surface's neighbourhood is left
+/// to the samples rendered and those within
+/// [`Sampling::regularise_near_surface`](crate::volume::Sampling).
 pub const REGULARISED_CLEARANCE: f32 = 0.05;
 
 /// The losses' normalisers: rays, rays inside the masks, samples a step takes when it renders
@@ -101,17 +97,6 @@ struct Norms {
     rays: f32,
     masked: f32,
     samples: f32,
-}
-
-/// Why a sample a step leaves out is regularised.
-#[derive(Clone, Copy)]
-struct Picked {
-    /// Within [`Sampling::regularise_near_surface`](crate::volume::Sampling) of the surface.
-    near: bool,
-    /// One in [`Sampling::regularise_left_out_every`](crate::volume::Sampling).
-    everywhere: bool,
-    /// One in [`Sampling::regularise_inside_every`](crate::volume::Sampling), deep inside.
-    inside: bool,
 }
 
 /// How many of the step's samples (of its every-sample count) a regularised point stands for
@@ -227,17 +212,7 @@ impl Step<'_> {
             let offsets: Vec<f32> =
                 if draws.is_empty() { Vec::new() } else { surface.iter().map(|s| draws[range.start + s.0]).collect() };
             let sample = (!draws.is_empty()).then_some(ViewSample { views: config.tangent_views, offsets: &offsets });
-            let found = tangents(
-                set,
-                config.aop_reliability,
-                model,
-                params,
-                level_weight,
-                &points,
-                &normals,
-                robust > 0.0,
-                sample,
-            );
+            let found = tangents(set, model, params, level_weight, &points, &normals, robust > 0.0, sample);
             for ((r, _, n), at) in surface.iter().zip(&found) {
                 let robust = curved_robust_scale(robust, at.curvature_share);
                 let (loss, dn) = tangent_loss(*n, &at.views, config.tangent_azimuth_only, robust);
@@ -283,56 +258,23 @@ impl Step<'_> {
                 grid.extend(self.regularise(points, share, &mut sums, &mut grad));
             }
         }
-        let starts = &self.batch.left_out_starts;
-        let sampling = config.sampling;
-        let (everywhere, inside) = (sampling.regularise_left_out_every, sampling.regularise_inside_every);
-        let systematic = !starts.is_empty() && (everywhere > 0 || inside > 0);
-        let near = sampling.regularise_near_surface;
-        if systematic || near > 0.0 {
-            // `--regularise-near-surface`: every sample left out within that distance of the
-            // surface (by the SDF the sampling found) carries both terms for itself, as it
-            // would rendered; the rendered samples alone leave the field just off the surface
-            // without them, and a smooth object's normals ripple. One in N of each ray's other
-            // samples left out, from its random start, stands for N of them: over the starts
-            // the terms see every sample of the region, as rendering every one does.
-            // `--regularise-left-out-every`: the curvature term everywhere, so that the field
-            // on either side of the surface takes the curvature of the space around it (the
-            // Eikonal term there too rounds edges). `--regularise-inside-every`: both terms deep
-            // inside, which the samples rendered (near the surface and before it) leave the
-            // object's inside without; the SDF the sampling found picks the samples there, and
-            // the field's own decides. A sample that more than one picks is evaluated once.
-            let picks = |every: usize, u: f32| (every > 0).then(|| ((u * every as f32) as usize).min(every - 1));
-            let (mut points, mut picked) = (Vec::new(), Vec::new());
-            for (r, ((ray, left_out), sdf)) in rays.iter().zip(&samples.left_out).zip(&samples.left_out_sdf).enumerate()
-            {
-                let u = if systematic { starts[range.start + r] } else { 0.0 };
-                let (first_everywhere, first_inside) = (picks(everywhere, u), picks(inside, u));
-                for (k, (&depth, &sdf)) in left_out.iter().zip(sdf).enumerate() {
-                    let pick = Picked {
-                        near: sdf.abs() < near,
-                        everywhere: first_everywhere.is_some_and(|first| k % everywhere == first),
-                        inside: first_inside.is_some_and(|first| k % inside == first) && sdf <= -REGULARISED_CLEARANCE,
-                    };
-                    if pick.near || pick.everywhere || pick.inside {
+        let near = config.sampling.regularise_near_surface;
+        if near > 0.0 {
+            // Every sample left out within that distance of the surface (by the SDF the
+            // sampling found) carries both terms for itself, as it would rendered: the rendered
+            // samples alone leave the field just off the surface without them, and a smooth
+            // object's normals ripple.
+            let mut points = Vec::new();
+            for (ray, (left_out, sdf)) in rays.iter().zip(samples.left_out.iter().zip(&samples.left_out_sdf)) {
+                for (&depth, &sdf) in left_out.iter().zip(sdf) {
+                    if sdf.abs() < near {
                         points.extend(ray.at(depth));
-                        picked.push(pick);
                     }
                 }
             }
             if !points.is_empty() {
-                let share = |field: &FieldSamples, i: usize| {
-                    let pick = picked[i];
-                    // The near samples are each one's own; the systematic picks stand for the
-                    // region's samples outside the near band.
-                    if pick.near {
-                        return Shares { eikonal: 1.0, curvature: 1.0 };
-                    }
-                    let deep = pick.inside && field.sdf[i] <= -REGULARISED_CLEARANCE;
-                    let deep_share = if deep { inside as f32 } else { 0.0 };
-                    let everywhere_share = if pick.everywhere { everywhere as f32 } else { 0.0 };
-                    Shares { eikonal: deep_share, curvature: everywhere_share + deep_share }
-                };
-                grid.extend(self.regularise(points, share, &mut sums, &mut grad));
+                let own = |_: &FieldSamples, _: usize| Shares { eikonal: 1.0, curvature: 1.0 };
+                grid.extend(self.regularise(points, own, &mut sums, &mut grad));
             }
         }
         (grad, grid, sums)
@@ -405,7 +347,7 @@ impl Step<'_> {
                 }
                 let (loss, d) = curvature(l);
                 sums.losses[Term::Curvature] += (loss * share) as f64 / samples as f64;
-                w[Term::Curvature] * d * share / samples
+                w[Term::Curvature] * self.batch.curvature_share * d * share / samples
             })
             .collect()
     }

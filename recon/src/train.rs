@@ -9,7 +9,7 @@
 pub use crate::config::{LossWeights, TrainConfig};
 use crate::data::TrainingSet;
 use crate::engine::Adam;
-use crate::losses::PerTerm;
+use crate::losses::{PerTerm, Term};
 use crate::model::Model;
 use crate::occupancy::{OccupancyGrid, REFRESH_EVERY};
 use crate::step::{Batch, CpuStep, StepCompute, StepLosses};
@@ -103,8 +103,6 @@ pub struct Trainer {
     pub adam: Adam,
     /// Next iteration to run.
     pub iteration: u32,
-    /// Rays the next step renders ([`TrainConfig::next_rays`]).
-    pub rays: usize,
     /// The engine that computes each step's gradient.
     compute: Box<dyn StepCompute>,
     /// The step's gradient, kept from step to step (as long as `params`).
@@ -130,7 +128,6 @@ impl Trainer {
         let safe = (params.clone(), adam.clone(), 0);
         let compute = Box::new(CpuStep);
         let grad = vec![0.0; params.len()];
-        let rays = config.batch_rays;
         let mut trainer = Self {
             config,
             model,
@@ -138,7 +135,6 @@ impl Trainer {
             params,
             adam,
             iteration: 0,
-            rays,
             compute,
             grad,
             bad_steps: 0,
@@ -156,9 +152,33 @@ impl Trainer {
 
     /// Per-level weights of the hash grid at the current iteration (coarse to fine).
     pub fn level_weight(&self) -> Vec<f32> {
+        self.level_weight_at(self.iteration)
+    }
+
+    /// Per-level weights of the hash grid at `iteration`: the start levels, then one more
+    /// every `anneal_every` iterations.
+    fn level_weight_at(&self, iteration: u32) -> Vec<f32> {
         let levels = self.model.field.levels();
-        let active = self.config.start_levels + (self.iteration / self.config.anneal_every.max(1)) as usize;
+        let active = self.config.start_levels + (iteration / self.config.anneal_every.max(1)) as usize;
         (0..levels).map(|l| if l < active { 1.0 } else { 0.0 }).collect()
+    }
+
+    /// The share of the curvature weight at the current iteration, whose hash-grid levels
+    /// are `level_weight`: 1 throughout unless the weight follows the levels
+    /// ([`TrainConfig::curvature_follows_levels`]); then from 0 to 1 over the learning rate's
+    /// warm-up, times the finest active level's cell over the start levels' finest cell.
+    pub fn curvature_share(&self, level_weight: &[f32]) -> f32 {
+        if !self.config.curvature_follows_levels {
+            return 1.0;
+        }
+        let warmup = self.config.adam.warmup;
+        let ramp = if warmup == 0 { 1.0 } else { (self.iteration as f32 / warmup as f32).min(1.0) };
+        let field = &self.model.field;
+        let cells = match (field.finest_active(&self.level_weight_at(0)), field.finest_active(level_weight)) {
+            (Some(start), Some(now)) => start as f32 / now as f32,
+            _ => 1.0,
+        };
+        ramp * cells
     }
 
     /// Finite-difference step of the normals in training: the finest active grid cell
@@ -191,9 +211,9 @@ impl Trainer {
         let from_background = if set.background.is_empty() {
             0
         } else {
-            (self.config.background_share * self.rays as f32).round() as usize
+            (self.config.background_share * self.config.batch_rays as f32).round() as usize
         };
-        let batch: Vec<(u32, u32)> = (0..self.rays)
+        let batch: Vec<(u32, u32)> = (0..self.config.batch_rays)
             .map(|i| {
                 let pool = if i < from_background { &set.background } else { &set.pool };
                 pool[rng.next_u32() as usize % pool.len()]
@@ -202,17 +222,13 @@ impl Trainer {
         let jitter: Vec<f32> = (0..batch.len()).map(|_| rng.next_f32()).collect();
         let level_weight = self.level_weight();
         let fd_step = self.fd_step(&level_weight);
+        let curvature_share = self.curvature_share(&level_weight);
         let warm = self.warming_up();
         let use_geometric = self.config.geometric && !warm;
         let occupancy = self.occupancy.clone();
         let sampling = self.config.sampling;
         let draws = if sampling.skips_empty_space() { sampling.regularised_left_out * batch.len() } else { 0 };
         let left_out_draws = (0..draws).map(|_| rng.next_f32()).collect();
-        let left_out_starts = if sampling.regularises_left_out_systematically() {
-            batch.iter().map(|_| rng.next_f32()).collect()
-        } else {
-            Vec::new()
-        };
         let views = self.config.tangent_views;
         let samples_views = use_geometric && views > 0 && views < set.views.len();
         let tangent_view_draws =
@@ -222,11 +238,11 @@ impl Trainer {
             jitter,
             level_weight,
             fd_step,
+            curvature_share,
             warm,
             use_geometric,
             occupancy,
             left_out_draws,
-            left_out_starts,
             tangent_view_draws,
         };
         let StepLosses { losses, samples } =
@@ -235,7 +251,13 @@ impl Trainer {
         let mut report = StepReport {
             iteration: it,
             losses,
-            loss: losses.iter().map(|(term, value)| w[term] as f64 * value).sum(),
+            loss: losses
+                .iter()
+                .map(|(term, value)| {
+                    let share = if term == Term::Curvature { batch.curvature_share } else { 1.0 };
+                    (w[term] * share) as f64 * value
+                })
+                .sum(),
             inv_s: self.model.inv_s(&self.params),
             polarization: self.model.radiance.learned_polarization(&self.params),
             rays: batch.rays.len(),
@@ -244,7 +266,6 @@ impl Trainer {
             event: None,
             normal_error_deg: None,
         };
-        self.rays = self.config.next_rays(report.rays, samples);
         if !report.loss.is_finite() || !all_finite(&self.grad) {
             self.bad_steps += 1;
             if self.bad_steps >= 3 {
@@ -274,18 +295,17 @@ impl Trainer {
     }
 
     /// Restore the state a checkpoint recorded: parameters, optimiser state, the next
-    /// iteration and its rays (the last safe state too).
+    /// iteration (the last safe state too).
     pub(crate) fn restore(
         &mut self,
         params: Vec<f32>,
         adam: Adam,
-        (iteration, rays): (u32, usize),
+        iteration: u32,
         occupancy: Option<OccupancyGrid>,
     ) {
         self.params = params;
         self.adam = adam;
         self.iteration = iteration;
-        self.rays = rays;
         self.safe = (self.params.clone(), self.adam.clone(), self.iteration);
         self.occupancy = occupancy.map(Arc::new);
     }

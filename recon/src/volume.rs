@@ -30,18 +30,6 @@ pub struct Sampling {
     /// ([`crate::step::Batch::left_out_draws`]); 0: none.
     #[serde(default)]
     pub regularised_left_out: usize,
-    /// One in this many of the samples a step leaves out along each ray, from a random start
-    /// ([`crate::step::Batch::left_out_starts`]), still carries the curvature term, for this
-    /// many samples: over the starts, the term of every sample, as if each were rendered; 0:
-    /// none.
-    #[serde(default)]
-    pub regularise_left_out_every: usize,
-    /// One in this many of the samples a step leaves out along each ray, from the same random
-    /// start, still carries the Eikonal and curvature terms, for this many samples, where it
-    /// lies inside the surface by at least [`crate::step::REGULARISED_CLEARANCE`]: over the
-    /// starts, the terms of every sample deep in the object, as if each were rendered; 0: none.
-    #[serde(default)]
-    pub regularise_inside_every: usize,
     /// Every sample a step leaves out within this distance of the surface (by the SDF the
     /// sampling found) still carries the Eikonal and curvature terms, each for itself, as it
     /// would rendered; 0: none.
@@ -54,12 +42,6 @@ impl Sampling {
     /// through an occupancy grid (`min_weight` above 0).
     pub fn skips_empty_space(&self) -> bool {
         self.min_weight > 0.0
-    }
-
-    /// Whether a step regularises one in N of the samples it leaves out along each ray, from a
-    /// random start ([`crate::step::Batch::left_out_starts`]).
-    pub fn regularises_left_out_systematically(&self) -> bool {
-        self.skips_empty_space() && (self.regularise_left_out_every > 0 || self.regularise_inside_every > 0)
     }
 }
 
@@ -84,7 +66,7 @@ pub fn sample_depths(
 /// changes a ray's composited values by less than `min_weight` per sample left out, and the
 /// gradient they would have had is as small. A ray may keep no sample (its opacity is then 0).
 /// The depths left out come back too, for the regularisers
-/// ([`crate::step::Batch::left_out_draws`], [`crate::step::Batch::left_out_starts`]).
+/// ([`crate::step::Batch::left_out_draws`], [`Sampling::regularise_near_surface`]).
 ///
 /// With `occupancy`, the SDF at a sample where the grid shows the surface to be far is the
 /// grid's, and a ray whose uniform samples all lie there is not up-sampled: nothing near it

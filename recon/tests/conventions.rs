@@ -29,7 +29,7 @@ fn median_residual(f: impl Fn(f32) -> f32) -> f32 {
         let t = [d[1] * e[2] - d[2] * e[1], d[2] * e[0] - d[0] * e[2], d[0] * e[1] - d[1] * e[0]];
         residuals.push(dot(n, t).abs().min(dot(n, e).abs()));
         // The loss itself is the product of both squares.
-        let (loss, _) = tangent_loss(n, &[Tangents { t, t_hat: e, weight: 1.0 }], false, 0.0);
+        let (loss, _) = tangent_loss(n, &[Tangents { t, t_hat: e }], false, 0.0);
         assert!((loss - (dot(n, t) * dot(n, e)).powi(2)).abs() < 1e-6);
     }
     residuals.sort_by(f32::total_cmp);

@@ -301,8 +301,6 @@ fn volume_rendering_end_to_end() {
         steps: 2,
         min_weight: 0.0,
         regularised_left_out: 0,
-        regularise_left_out_every: 0,
-        regularise_inside_every: 0,
         regularise_near_surface: 0.0,
     };
     let depths = sample_depths(&model, &params, &lw, &rays, sampling, &[0.5; 5]);
@@ -330,8 +328,6 @@ fn volume_rendering_at_the_samples_that_carry_weight() {
         steps: 2,
         min_weight: 0.01,
         regularised_left_out: 0,
-        regularise_left_out_every: 0,
-        regularise_inside_every: 0,
         regularise_near_surface: 0.0,
     };
     let grid = OccupancyGrid::new(&model, &params, &lw);
@@ -392,8 +388,8 @@ fn losses() {
     let g = [0.3f32, -1.2, 0.5];
     let n = [0.4f32, 0.8, -0.3];
     let views = [
-        Tangents { t: [0.6, 0.0, 0.8], t_hat: [0.0, 1.0, 0.0], weight: 1.0 },
-        Tangents { t: [0.0, 0.6, -0.8], t_hat: [1.0, 0.0, 0.0], weight: 0.5 },
+        Tangents { t: [0.6, 0.0, 0.8], t_hat: [0.0, 1.0, 0.0] },
+        Tangents { t: [0.0, 0.6, -0.8], t_hat: [1.0, 0.0, 0.0] },
     ];
     let (_, dg) = eikonal(g);
     let (_, dn) = tangent_loss(n, &views, false, 0.0);

@@ -89,12 +89,12 @@ fn random_batch(trainer: &Trainer, rng: &mut Rng, use_geometric: bool, occupancy
         jitter: rays.iter().map(|_| rng.next_f32()).collect(),
         rays,
         fd_step: trainer.fd_step(&level_weight),
+        curvature_share: trainer.curvature_share(&level_weight),
         level_weight,
         warm: false,
         use_geometric,
         occupancy: occupancy.cloned().map(std::sync::Arc::new),
         left_out_draws: Vec::new(),
-        left_out_starts: Vec::new(),
         tangent_view_draws: Vec::new(),
     }
 }
@@ -240,9 +240,8 @@ fn resume_continues_bit_for_bit() {
     config.batch_rays = 64;
     config.diffuse_only = 19; // cross the warm-up boundary between stop and resume
     config.tangent_views = 4; // of the six views: each ray's sample drawn
-    config.samples_per_step = 1200; // each step's rays follow the samples of the one before
-    config.sampling.regularise_left_out_every = 8; // the curvature term on one in 8 of the samples left out
-    config.sampling.regularise_inside_every = 4; // both terms on one in 4 of those deep inside
+    config.sampling.regularised_left_out = 2; // draws behind what each ray renders
+    assert!(config.sampling.regularise_near_surface > 0.0, "the samples left out near the surface regularised");
     assert!(config.sampling.skips_empty_space() && rmvp_recon::occupancy::REFRESH_EVERY == 16);
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     // On one thread here, on two below: the same steps whatever the number of threads.
@@ -252,15 +251,7 @@ fn resume_continues_bit_for_bit() {
         .build()
         .unwrap()
         .install(|| (0..22).map(|_| straight.step()).collect());
-    // The first step renders the configured rays, more samples than asked for; from the
-    // third on, steps render the samples asked for, within a batch's spread (a step after the
-    // occupancy grid's refresh may take more: its rays follow the step before).
-    assert_eq!(reports[0].rays, 64);
-    assert!(reports[0].samples > 1500, "{}", reports[0].samples);
-    let mut later: Vec<usize> = reports[2..].iter().map(|r| r.samples).collect();
-    later.sort();
-    let median = later[later.len() / 2] as f64;
-    assert!((median / 1200.0 - 1.0).abs() < 0.1, "{median}: {later:?}");
+    assert!(reports.iter().all(|r| r.rays == 64 && r.event.is_none()), "every step renders the batch's rays");
     let pool = rayon::ThreadPoolBuilder::new().num_threads(2).build().unwrap();
     let mut first = Trainer::new(config.clone(), set.clone());
     // Stopped after the occupancy grid's refresh at 16, before the next.
@@ -281,7 +272,6 @@ fn resume_continues_bit_for_bit() {
         }
     });
     assert_eq!(resumed.iteration, straight.iteration);
-    assert_eq!(resumed.rays, straight.rays);
     assert!(resumed.params == straight.params, "parameters differ after resume");
     assert!(resumed.adam == straight.adam, "optimiser state differs after resume");
 
@@ -291,19 +281,30 @@ fn resume_continues_bit_for_bit() {
     let err = checkpoint::load(&path, set.clone(), &other, None).err().expect("another configuration");
     assert!(matches!(err, Error::CheckpointSettings { .. }), "{err}");
 
-    // One whose next step's rays lie outside the run's range is refused, saying so.
+    // One whose recorded options set an option this version removed is refused, saying so;
+    // the same option left unset (as an earlier version wrote every option) is passed over.
     let bytes = std::fs::read(&path).unwrap();
     let header_len = u64::from_le_bytes(bytes[8..16].try_into().unwrap()) as usize;
-    let mut header: serde_json::Value = serde_json::from_slice(&bytes[16..16 + header_len]).unwrap();
-    header["rays"] = serde_json::json!(64 * 5);
-    let header = serde_json::to_vec(&header).unwrap();
-    let mut edited = bytes[..8].to_vec();
-    edited.extend_from_slice(&(header.len() as u64).to_le_bytes());
-    edited.extend_from_slice(&header);
-    edited.extend_from_slice(&bytes[16 + header_len..]);
-    std::fs::write(&path, &edited).unwrap();
-    let err = checkpoint::load(&path, set.clone(), &config, None).err().expect("rays out of range");
-    assert!(matches!(&err, Error::BadCheckpoint { problem, .. } if problem.contains("320 rays")), "{err}");
+    let with_options = |options: serde_json::Value| {
+        let mut header: serde_json::Value = serde_json::from_slice(&bytes[16..16 + header_len]).unwrap();
+        header["options"] = options;
+        let header = serde_json::to_vec(&header).unwrap();
+        let mut edited = bytes[..8].to_vec();
+        edited.extend_from_slice(&(header.len() as u64).to_le_bytes());
+        edited.extend_from_slice(&header);
+        edited.extend_from_slice(&bytes[16 + header_len..]);
+        std::fs::write(&path, &edited).unwrap();
+    };
+    let mut options = serde_json::to_value(ReconOptions::default()).unwrap();
+    options["regularise_inside_every"] = serde_json::Value::Null;
+    with_options(options.clone());
+    assert_eq!(checkpoint::recorded_options(&path).unwrap(), Some(ReconOptions::default()));
+    options["regularise_inside_every"] = serde_json::json!(4);
+    with_options(options);
+    let err = checkpoint::recorded_options(&path).err().expect("a removed option refused");
+    let message = err.to_string();
+    assert!(matches!(&err, Error::BadCheckpoint { .. }), "{err}");
+    assert!(message.contains("`regularise_inside_every` was removed") && message.contains("checkpoint.bin"), "{message}");
 
     // One of another format (an older layout of the parameters) is refused, saying so.
     let name = b"rmvp-recon-checkpoint-";
@@ -450,136 +451,6 @@ fn the_curvature_term_sees_the_unseen_space_a_step_leaves_out_as_if_each_sample_
     assert!(spread < 0.5 * truth, "spread {spread} of {truth}");
 }
 
-/// Where a test regularises one in N of the samples a step leaves out.
-#[derive(Clone, Copy, PartialEq)]
-enum LeftOut {
-    /// Every sample: the curvature term (`Sampling::regularise_left_out_every`).
-    Everywhere,
-    /// The samples inside the surface by the clearance: the Eikonal and curvature terms
-    /// (`Sampling::regularise_inside_every`).
-    DeepInside,
-    /// Both at once: a sample both pick carries the curvature term twice.
-    Both,
-}
-
-impl LeftOut {
-    fn everywhere(self) -> bool {
-        self != LeftOut::DeepInside
-    }
-
-    fn deep_inside(self) -> bool {
-        self != LeftOut::Everywhere
-    }
-}
-
-#[test]
-fn the_curvature_term_sees_every_sample_a_step_leaves_out_as_if_each_were_rendered() {
-    regularises_left_out_samples_as_if_each_were_rendered(LeftOut::Everywhere);
-}
-
-#[test]
-fn both_regularisers_see_every_sample_a_step_leaves_deep_inside_as_if_each_were_rendered() {
-    regularises_left_out_samples_as_if_each_were_rendered(LeftOut::DeepInside);
-}
-
-#[test]
-fn the_left_out_regularisers_together_add_up_as_each_alone() {
-    regularises_left_out_samples_as_if_each_were_rendered(LeftOut::Both);
-}
-
-/// One in N of the samples a step leaves out, from each of N starts, regularised for N: on
-/// average the losses and gradient of every sample of `region` rendered.
-fn regularises_left_out_samples_as_if_each_were_rendered(region: LeftOut) {
-    use rmvp_recon::losses::{curvature, eikonal, Term};
-    use rmvp_recon::samples::FieldSamples;
-    use rmvp_recon::step::REGULARISED_CLEARANCE;
-    use rmvp_recon::volume::weighted_samples;
-    let (mut config, set) = spot_steps(200);
-    // Without the draws behind what a ray sees or the samples near the surface: the terms on
-    // one in N of the samples left out.
-    config.sampling.regularised_left_out = 0;
-    config.sampling.regularise_near_surface = 0.0;
-    let trainer = sharpened(&config, &set);
-    // Without the occupancy grid the steps and the reference below take the same depths.
-    let mut rng = Rng::for_pixel(7 + rmvp_testkit::test_seed(), 0, 0);
-    let batch = random_batch(&trainer, &mut rng, false, None);
-    let (model, params) = (&trainer.model, &trainer.params);
-    let step = |every: usize, start: f32| {
-        let (mut config, mut batch) = (config.clone(), batch.clone());
-        if region.everywhere() {
-            config.sampling.regularise_left_out_every = every;
-        }
-        if region.deep_inside() {
-            config.sampling.regularise_inside_every = every;
-        }
-        batch.left_out_starts = vec![start; batch.rays.len()];
-        let mut grad = vec![0f32; params.len()];
-        let losses = CpuStep.gradient(model, params, &set, &config, &batch, &mut grad).losses;
-        (losses, grad)
-    };
-    // The reference: the rendered samples' terms (a step regularising none) and each left-out
-    // sample's own in the region, all normalised by the samples a step takes rendering every one.
-    let (rendered_only, _) = step(0, 0.5);
-    let rays: Vec<_> = batch.rays.iter().map(|&(v, p)| set.ray(v, p)).collect();
-    let samples = weighted_samples(model, params, &batch.level_weight, &rays, config.sampling, &batch.jitter, None);
-    let mut left_out = Vec::new();
-    for (ray, depths) in rays.iter().zip(&samples.left_out) {
-        depths.iter().for_each(|&d| left_out.extend(ray.at(d)));
-    }
-    let rendered: usize = samples.rendered.iter().map(Vec::len).sum();
-    let field = FieldSamples::evaluate(model, params, &batch.level_weight, left_out, batch.fd_step);
-    assert!(field.len() > rendered, "{} samples left out, {rendered} rendered", field.len());
-    let every_samples = (batch.rays.len() * (config.sampling.coarse + config.sampling.fine)) as f64;
-    let (mut truth, mut in_region) = (rendered_only, 0);
-    for (i, &laplacian) in field.laplacians.iter().enumerate() {
-        let deep = region.deep_inside() && field.sdf[i] <= -REGULARISED_CLEARANCE;
-        let curvature_share = u8::from(region.everywhere()) + u8::from(deep);
-        if curvature_share == 0 {
-            continue;
-        }
-        in_region += 1;
-        truth[Term::Curvature] += (curvature_share as f32 * curvature(laplacian).0) as f64 / every_samples;
-        if deep {
-            let g = &field.gradients[3 * i..3 * i + 3];
-            truth[Term::Eikonal] += eikonal([g[0], g[1], g[2]]).0 as f64 / every_samples;
-        }
-    }
-    let (all, all_grad) = step(1, 0.5);
-    let terms: &[Term] = if region.deep_inside() { &[Term::Curvature, Term::Eikonal] } else { &[Term::Curvature] };
-    for &term in terms {
-        let (value, truth, rendered) = (all[term], truth[term], rendered_only[term]);
-        println!("{term:?}: every sample of the region {value:.5}, reference {truth:.5}, the rendered samples' {rendered:.5}");
-        assert!((value - truth).abs() < 1e-4 * truth, "{term:?}: {value} against {truth}");
-        // A mutation that leaves out the region's samples misses the reference by their part.
-        assert!(truth - rendered > 0.02 * truth, "{term:?}: the left-out samples' part is a real share of it");
-    }
-    if region == LeftOut::Everywhere {
-        assert!(
-            truth[Term::Curvature] > 2.0 * rendered_only[Term::Curvature],
-            "the left-out samples' part is most of it"
-        );
-        // The Eikonal term stays the rendered samples' own.
-        assert_eq!(all[Term::Eikonal], rendered_only[Term::Eikonal]);
-    }
-    println!("{in_region} of {} samples left out in the region", field.len());
-    assert!(in_region > 15, "{in_region} samples left out in the region");
-    // One in four from each of the four starts: on average the gradient of every sample.
-    let every = 4;
-    let mut mean = vec![0f64; params.len()];
-    for k in 0..every {
-        let (losses, grad) = step(every, (k as f32 + 0.5) / every as f32);
-        assert_eq!(losses[Term::Mask], all[Term::Mask], "the rendering is the same");
-        mean.iter_mut().zip(&grad).for_each(|(m, &g)| *m += g as f64 / every as f64);
-    }
-    let norm = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
-    let difference = norm(&mut mean.iter().zip(&all_grad).map(|(m, &a)| m - a as f64));
-    let scale = norm(&mut all_grad.iter().map(|&a| a as f64));
-    let (_, one_start) = step(every, 0.5);
-    let spread = norm(&mut one_start.iter().zip(&all_grad).map(|(&o, &a)| (o - a) as f64));
-    println!("gradient: |mean over starts - every sample| {difference:.3e}, one start {spread:.3e}, of {scale:.3e}");
-    assert!(difference < 1e-4 * scale && spread > 20.0 * difference, "{difference} {spread} of {scale}");
-}
-
 #[test]
 fn the_regularisers_see_every_sample_a_step_leaves_near_the_surface_as_if_it_were_rendered() {
     use rmvp_recon::losses::{curvature, eikonal, Term};
@@ -675,7 +546,7 @@ fn the_tangent_loss_over_a_sample_of_the_views_estimates_its_mean_over_every_vie
         .collect();
     let points: Vec<[f32; 3]> = normals.iter().map(|n| n.map(|x| x * radius)).collect();
     let every = |sample: Option<ViewSample<'_>>| {
-        tangents(&trainer.set, 0.0, &trainer.model, &trainer.params, &level_weight, &points, &normals, false, sample)
+        tangents(&trainer.set, &trainer.model, &trainer.params, &level_weight, &points, &normals, false, sample)
     };
     let all = every(None);
     let (views, offsets) = (2, 512);
@@ -706,4 +577,74 @@ fn the_tangent_loss_over_a_sample_of_the_views_estimates_its_mean_over_every_vie
         );
         assert!(off < 0.01 * len.max(1e-4), "point {i}: gradient off by {off} of {len}");
     }
+}
+
+#[test]
+fn the_fast_presets_curvature_weight_ramps_up_then_falls_as_the_grids_levels_open() {
+    let scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
+    let config = presets::training(Preset::Fast, 3000);
+    assert!(config.curvature_follows_levels);
+    let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
+    let mut trainer = Trainer::new(config.clone(), set.clone());
+    let mut share_at = |iteration: u32| {
+        trainer.iteration = iteration;
+        let level_weight = trainer.level_weight();
+        (trainer.curvature_share(&level_weight), trainer.model.field.finest_active(&level_weight).unwrap() as f32)
+    };
+    let (warmup, every) = (config.adam.warmup, config.anneal_every);
+    assert!(warmup > 0 && warmup < every, "the warm-up ends before the first level opens");
+    // From 0 over the learning rate's warm-up, then the full weight while the start's levels
+    // alone are open.
+    assert_eq!(share_at(0).0, 0.0);
+    assert!((share_at(warmup / 2).0 - (warmup / 2) as f32 / warmup as f32).abs() < 1e-6);
+    let (full, start_cells) = share_at(warmup);
+    assert_eq!(full, 1.0);
+    assert_eq!(share_at(every - 1).0, 1.0);
+    // Each level that opens: the start's finest cell over the finest open one.
+    let mut last = 1.0;
+    for opened in 1..=4 {
+        let (share, cells) = share_at(opened * every);
+        assert!(cells > start_cells && (share - start_cells / cells).abs() < 1e-6, "{share} at {cells} cells");
+        assert!(share < last, "falls as each level opens: {share} after {last}");
+        last = share;
+    }
+    // All eight open (16 to 256 cells): a fifth of the start's weight to the end.
+    let (end, cells) = share_at(config.iterations - 1);
+    assert_eq!(cells, 256.0);
+    assert!((0.19..0.22).contains(&end) && end == last, "{end}");
+    // The other presets keep their weight throughout.
+    for preset in [Preset::Dense, Preset::Paper] {
+        let config = presets::training(preset, 3000);
+        let mut trainer = Trainer::new(config, set.clone());
+        for iteration in [0, 100, 2999] {
+            trainer.iteration = iteration;
+            assert_eq!(trainer.curvature_share(&trainer.level_weight()), 1.0, "{preset:?} at {iteration}");
+        }
+    }
+}
+
+#[test]
+fn a_steps_curvature_gradient_is_its_share_of_the_weight() {
+    use rmvp_recon::losses::Term;
+    use rmvp_recon::train::LossWeights;
+    let (mut config, set) = spot_steps(200);
+    // The curvature term alone, on the samples rendered and those regularised near the surface.
+    config.weights = LossWeights::from_fn(|term| if term == Term::Curvature { 0.01 } else { 0.0 });
+    let trainer = sharpened(&config, &set);
+    let mut rng = Rng::for_pixel(13 + rmvp_testkit::test_seed(), 0, 0);
+    let mut batch = random_batch(&trainer, &mut rng, false, None);
+    let (model, params) = (&trainer.model, &trainer.params);
+    let mut gradient = |share: f32| {
+        batch.curvature_share = share;
+        let mut grad = vec![0f32; params.len()];
+        let losses = CpuStep.gradient(model, params, &set, &config, &batch, &mut grad).losses;
+        (losses, grad)
+    };
+    let (losses, whole) = gradient(1.0);
+    let (quarter_losses, quarter) = gradient(0.25);
+    assert_eq!(losses[Term::Curvature], quarter_losses[Term::Curvature], "the losses are unweighted");
+    let scale = whole.iter().fold(0f32, |m, g| m.max(g.abs()));
+    assert!(scale > 0.0);
+    let worst = whole.iter().zip(&quarter).map(|(w, q)| (q - 0.25 * w).abs()).fold(0f32, f32::max);
+    assert!(worst <= 1e-6 * scale, "{worst} of {scale}");
 }

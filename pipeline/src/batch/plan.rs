@@ -47,7 +47,7 @@ pub struct Variant {
     /// Name (table rows, task folders): letters, digits, `-`, `_`, `.`.
     pub name: String,
     /// The options (their defaults where not given); the seed comes from the plan's `seeds`.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "rmvp_recon::options::deserialize_recorded")]
     pub options: ReconOptions,
 }
 

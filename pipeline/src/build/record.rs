@@ -128,6 +128,7 @@ pub struct BuildOptions {
     /// A panorama: the environment map.
     pub panorama: Option<PanoramaInput>,
     /// The reference reconstruction from all views (with a scan).
+    #[serde(deserialize_with = "rmvp_recon::options::deserialize_recorded")]
     pub reference: ReconOptions,
     /// Continue an unfinished build in `output`.
     #[serde(skip)]

@@ -18,13 +18,6 @@ pub struct AdamConfig {
     pub warmup: u32,
     /// Final learning rate as a fraction of the peak (cosine decay).
     pub final_fraction: f32,
-    /// Learning rate of hash-grid level `l` relative to level 0: `grid_level_decay^l`.
-    #[serde(default = "one")]
-    pub grid_level_decay: f32,
-}
-
-fn one() -> f32 {
-    1.0
 }
 
 /// Adam state over the flat parameter vector.
@@ -87,7 +80,7 @@ impl Adam {
         for (range, group) in layout.ranges() {
             let (lr, eps) = match *group {
                 Group::Network => (config.lr_network, 1e-8),
-                Group::Grid { level } => (config.lr_grid * config.grid_level_decay.powi(level as i32), 1e-15),
+                Group::Grid { .. } => (config.lr_grid, 1e-15),
                 Group::Variance => (config.lr_variance, 1e-8),
                 Group::Unused => continue,
             };
@@ -124,9 +117,9 @@ mod tests {
     use crate::engine::params::{Group, ParamLayout};
 
     /// Adam's first step moves every parameter by its group's rate (times the schedule), whatever
-    /// the gradient's size: so each hash-grid level moves by `lr_grid * decay^level`.
+    /// the gradient's size: the networks' by `lr_network`, every hash-grid level's by `lr_grid`.
     #[test]
-    fn grid_levels_step_by_their_own_rates() {
+    fn each_group_steps_by_its_own_rate() {
         let mut layout = ParamLayout::default();
         layout.reserve(2, Group::Network);
         for level in 0..3 {
@@ -138,12 +131,11 @@ mod tests {
             lr_variance: 1e-3,
             warmup: 0,
             final_fraction: 1.0,
-            grid_level_decay: 0.5,
         };
         let mut params = vec![0f32; layout.len()];
         let grad = [1.0, 2.0, 0.1, 3.0, 1.0, 1.0, 5.0, 0.2];
         Adam::new(layout.len()).step(&layout, &config, &mut params, &grad, 0, 10);
-        let want = [1e-3, 1e-3, 1e-2, 1e-2, 5e-3, 5e-3, 2.5e-3, 2.5e-3];
+        let want = [1e-3, 1e-3, 1e-2, 1e-2, 1e-2, 1e-2, 1e-2, 1e-2];
         for (p, w) in params.iter().zip(want) {
             assert!((p + w).abs() < 1e-5 * w, "{params:?}");
         }
