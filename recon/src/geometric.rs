@@ -227,10 +227,7 @@ pub fn tangents(
             None => view.aop[q.pixel],
         };
         let (t, e) = aop_tangents(&view.camera, &q.towards, aop);
-        out[q.point].views.push(Tangents {
-            t: set.frame.dir_from_world(&t),
-            t_hat: set.frame.dir_from_world(&e),
-        });
+        out[q.point].views.push(Tangents { t: set.frame.dir_from_world(&t), t_hat: set.frame.dir_from_world(&e) });
     }
     out
 }

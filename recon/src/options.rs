@@ -187,7 +187,9 @@ pub fn removed_option(name: &str) -> Option<String> {
 
 /// Deserialize [`ReconOptions`] as [`ReconOptions::from_recorded`] reads them (for
 /// `#[serde(deserialize_with)]` on a field of a file's record).
-pub fn deserialize_recorded<'de, D: serde::Deserializer<'de>>(deserializer: D) -> std::result::Result<ReconOptions, D::Error> {
+pub fn deserialize_recorded<'de, D: serde::Deserializer<'de>>(
+    deserializer: D,
+) -> std::result::Result<ReconOptions, D::Error> {
     let value = serde_json::Value::deserialize(deserializer)?;
     ReconOptions::from_recorded(value).map_err(serde::de::Error::custom)
 }

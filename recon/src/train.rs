@@ -128,19 +128,8 @@ impl Trainer {
         let safe = (params.clone(), adam.clone(), 0);
         let compute = Box::new(CpuStep);
         let grad = vec![0.0; params.len()];
-        let mut trainer = Self {
-            config,
-            model,
-            set,
-            params,
-            adam,
-            iteration: 0,
-            compute,
-            grad,
-            bad_steps: 0,
-            safe,
-            occupancy: None,
-        };
+        let mut trainer =
+            Self { config, model, set, params, adam, iteration: 0, compute, grad, bad_steps: 0, safe, occupancy: None };
         trainer.refresh_occupancy();
         trainer
     }
@@ -296,13 +285,7 @@ impl Trainer {
 
     /// Restore the state a checkpoint recorded: parameters, optimiser state, the next
     /// iteration (the last safe state too).
-    pub(crate) fn restore(
-        &mut self,
-        params: Vec<f32>,
-        adam: Adam,
-        iteration: u32,
-        occupancy: Option<OccupancyGrid>,
-    ) {
+    pub(crate) fn restore(&mut self, params: Vec<f32>, adam: Adam, iteration: u32, occupancy: Option<OccupancyGrid>) {
         self.params = params;
         self.adam = adam;
         self.iteration = iteration;

@@ -304,7 +304,10 @@ fn resume_continues_bit_for_bit() {
     let err = checkpoint::recorded_options(&path).err().expect("a removed option refused");
     let message = err.to_string();
     assert!(matches!(&err, Error::BadCheckpoint { .. }), "{err}");
-    assert!(message.contains("`regularise_inside_every` was removed") && message.contains("checkpoint.bin"), "{message}");
+    assert!(
+        message.contains("`regularise_inside_every` was removed") && message.contains("checkpoint.bin"),
+        "{message}"
+    );
 
     // One of another format (an older layout of the parameters) is refused, saying so.
     let name = b"rmvp-recon-checkpoint-";

@@ -125,13 +125,7 @@ mod tests {
         for level in 0..3 {
             layout.reserve(2, Group::Grid { level });
         }
-        let config = AdamConfig {
-            lr_network: 1e-3,
-            lr_grid: 1e-2,
-            lr_variance: 1e-3,
-            warmup: 0,
-            final_fraction: 1.0,
-        };
+        let config = AdamConfig { lr_network: 1e-3, lr_grid: 1e-2, lr_variance: 1e-3, warmup: 0, final_fraction: 1.0 };
         let mut params = vec![0f32; layout.len()];
         let grad = [1.0, 2.0, 0.1, 3.0, 1.0, 1.0, 5.0, 0.2];
         Adam::new(layout.len()).step(&layout, &config, &mut params, &grad, 0, 10);
