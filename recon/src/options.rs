@@ -185,6 +185,15 @@ pub fn removed_option(name: &str) -> Option<String> {
     Some(format!("the option `{name}` was removed from rmvp ({instead}): delete it"))
 }
 
+/// A deserializer's message with an unknown field that is one of [`REMOVED_OPTIONS`] told in
+/// [`removed_option`]'s words; any other message as it is. For readers that keep the file's
+/// own error positions (a batch plan's lines), where [`ReconOptions::from_recorded`] would lose
+/// them.
+pub fn explain_removed(message: &str) -> String {
+    let named = message.strip_prefix("unknown field `").and_then(|rest| rest.split_once('`')).map(|(name, _)| name);
+    named.and_then(removed_option).unwrap_or_else(|| message.to_string())
+}
+
 /// Deserialize [`ReconOptions`] as [`ReconOptions::from_recorded`] reads them (for
 /// `#[serde(deserialize_with)]` on a field of a file's record).
 pub fn deserialize_recorded<'de, D: serde::Deserializer<'de>>(

@@ -301,7 +301,7 @@ fn resume_continues_bit_for_bit() {
     assert_eq!(checkpoint::recorded_options(&path).unwrap(), Some(ReconOptions::default()));
     options["regularise_inside_every"] = serde_json::json!(4);
     with_options(options);
-    let err = checkpoint::recorded_options(&path).err().expect("a removed option refused");
+    let err = checkpoint::recorded_options(&path).expect_err("a removed option refused");
     let message = err.to_string();
     assert!(matches!(&err, Error::BadCheckpoint { .. }), "{err}");
     assert!(

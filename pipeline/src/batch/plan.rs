@@ -47,7 +47,7 @@ pub struct Variant {
     /// Name (table rows, task folders): letters, digits, `-`, `_`, `.`.
     pub name: String,
     /// The options (their defaults where not given); the seed comes from the plan's `seeds`.
-    #[serde(default, deserialize_with = "rmvp_recon::options::deserialize_recorded")]
+    #[serde(default)]
     pub options: ReconOptions,
 }
 
@@ -185,7 +185,8 @@ impl BatchPlan {
             line: span.map(|s| line_of(&text, s.start)),
             why,
         };
-        let file: PlanFile = toml::from_str(&text).map_err(|e| fault(e.span(), e.message().trim().to_string()))?;
+        let file: PlanFile = toml::from_str(&text)
+            .map_err(|e| fault(e.span(), rmvp_recon::options::explain_removed(e.message().trim())))?;
         let parent = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
         let base = parent.canonicalize().map_err(|e| rmvp_dataset::Error::io(path, e))?;
 
@@ -460,6 +461,11 @@ mod tests {
         let (line, why) = refusal(plan_in(dir.path(), &format!("datasets = [\"spot\"]{variant}iter = 10\n")));
         assert_eq!(line, Some(5), "{why}");
         assert!(why.contains("unknown field `iter`"), "{why}");
+
+        let removed = format!("datasets = [\"spot\"]{variant}aop_reliability = 0.05\n");
+        let (line, why) = refusal(plan_in(dir.path(), &removed));
+        assert_eq!(line, Some(5), "{why}");
+        assert!(why.contains("`aop_reliability` was removed"), "{why}");
 
         let text = format!("datasets = [\n  \"spot\",\n  \"missing\",\n]{variant}");
         let (line, why) = refusal(plan_in(dir.path(), &text));
