@@ -186,9 +186,7 @@ pub fn removed_option(name: &str) -> Option<String> {
 }
 
 /// A deserializer's message with an unknown field that is one of [`REMOVED_OPTIONS`] told in
-/// [`removed_option`]'s words; any other message as it is. For readers that keep the file's
-/// own error positions (a batch plan's lines), where [`ReconOptions::from_recorded`] would lose
-/// them.
+/// [`removed_option`]'s words; any other message as it is.
 pub fn explain_removed(message: &str) -> String {
     let named = message.strip_prefix("unknown field `").and_then(|rest| rest.split_once('`')).map(|(name, _)| name);
     named.and_then(removed_option).unwrap_or_else(|| message.to_string())
@@ -271,20 +269,13 @@ impl ReconOptions {
 
     /// Options as a file records them (a batch plan's variant, a checkpoint, a dataset's build
     /// record): an option of [`REMOVED_OPTIONS`] that an earlier rmvp wrote unset (`null`) is
-    /// passed over; one set to a value is refused in [`removed_option`]'s words, and any
-    /// other fault in serde's.
-    pub fn from_recorded(value: serde_json::Value) -> std::result::Result<ReconOptions, String> {
-        let mut value = value;
+    /// passed over; one set to a value is refused in [`removed_option`]'s words
+    /// ([`explain_removed`]), and any other fault in serde's.
+    pub fn from_recorded(mut value: serde_json::Value) -> std::result::Result<ReconOptions, String> {
         if let serde_json::Value::Object(fields) = &mut value {
-            for (name, _) in REMOVED_OPTIONS {
-                match fields.get(name) {
-                    Some(serde_json::Value::Null) => drop(fields.remove(name)),
-                    Some(_) => return Err(removed_option(name).expect("a removed option")),
-                    None => {}
-                }
-            }
+            fields.retain(|name, field| !(field.is_null() && removed_option(name).is_some()));
         }
-        serde_json::from_value(value).map_err(|e| e.to_string())
+        serde_json::from_value(value).map_err(|e| explain_removed(&e.to_string()))
     }
 
     /// These options with some changed by TOML assignments (`learned_polarization = true`, one
@@ -293,8 +284,7 @@ impl ReconOptions {
         let changes: toml::Table = toml::from_str(assignments).map_err(|e| e.message().trim().to_string())?;
         let mut table = toml::Table::try_from(self).map_err(|e| e.to_string())?;
         table.extend(changes);
-        let value = serde_json::to_value(table).map_err(|e| e.to_string())?;
-        ReconOptions::from_recorded(value)
+        table.try_into().map_err(|e: toml::de::Error| explain_removed(e.message().trim()))
     }
 
     /// The iterations this run trains.
