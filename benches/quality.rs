@@ -384,6 +384,106 @@ fn main() {
     if plan.seeds.len() > 1 {
         print_spreads(&rows);
     }
+    if plan.is_reference() {
+        for set in distinct(rows.iter().map(|r| r.set)) {
+            write_results(set, &rows);
+        }
+    }
+}
+
+impl Plan {
+    /// Whether the plan is the one `docs/benchmarks.md` states: the full model alone at seed 0
+    /// with every default (its rows go into `bench/results/quality-SET.json`).
+    fn is_reference(&self) -> bool {
+        let defaults = ReconOptions::default();
+        self.variants == ["full"]
+            && self.seeds == [0]
+            && self.preset == Preset::Fast
+            && self.iterations.is_none()
+            && self.rays.is_none()
+            && self.size == (256, 256)
+            && self.views == CaptureOptions::default().views
+            && self.mesh_resolution == defaults.mesh_res
+            && self.curve.is_empty()
+    }
+}
+
+/// The columns of a set's results table.
+const RESULT_COLUMNS: [&str; 7] = ["scene", "size", "Chamfer", "F-score", "normal MAE train", "held out", "all views"];
+
+/// Write `bench/results/quality-SET.json` with `rows`' scenes of `set`, keeping the scenes of
+/// an earlier run that this one did not reconstruct (a set is often run as two halves side by
+/// side), in the set's order, and the mean normal error over them.
+fn write_results(set: &str, rows: &[Row]) {
+    use rmvp_testkit::results::{BenchResult, Table};
+    let name = format!("quality-{set}");
+    let order: Vec<String> = match set {
+        "mitsuba" => rmvp_testkit::mitsuba_scenes()
+            .iter()
+            .map(|d| d.file_name().expect("a folder name").to_string_lossy().to_string())
+            .collect(),
+        _ => SCENES.iter().map(|s| s.name.to_string()).collect(),
+    };
+    let earlier: Vec<Vec<String>> = BenchResult::read(&name)
+        .and_then(|r| r.tables.into_iter().next())
+        .filter(|t| t.columns == RESULT_COLUMNS)
+        .map_or(Vec::new(), |t| t.rows);
+    let mut result = BenchResult::now(
+        &format!(
+            "Reconstruction quality on {}",
+            if set == "mitsuba" { "Mitsuba's renders" } else { "rmvp's own scenes" }
+        ),
+        &format!("cargo bench --bench quality -- --sets {set} --variants full"),
+    );
+    let mut table = Table::new(&RESULT_COLUMNS);
+    let mut all_views = Vec::new();
+    for scene in &order {
+        let cells = match rows.iter().find(|r| r.set == set && &r.scene == scene) {
+            Some(r) => vec![
+                r.scene.clone(),
+                r.size.clone(),
+                format!("{:.4}", r.chamfer),
+                format!("{:.3}", r.f_score),
+                format!("{:.2}", r.normal_mae_train_deg),
+                format!("{:.2}", r.normal_mae_held_out_deg),
+                format!("{:.2}", r.normal_mae_deg),
+            ],
+            None => match earlier.iter().find(|cells| &cells[0] == scene) {
+                Some(cells) => cells.clone(),
+                None => continue,
+            },
+        };
+        all_views.push(cells[6].parse::<f64>().expect("a normal error"));
+        result.figure(scene, &cells[6]);
+        if scene == "float" {
+            result.figure("float_chamfer", &cells[2]);
+        }
+        table.row(cells);
+    }
+    let count = all_views.len();
+    let mean = result.figure("mean", format!("{:.2}", all_views.iter().sum::<f64>() / count as f64));
+    table.row(vec![format!("mean of {count}"), "".into(), "".into(), "".into(), "".into(), "".into(), mean.clone()]);
+    result.headline = format!("mean normal error {mean} degrees on {count} scenes");
+    result.about = match set {
+        "mitsuba" => "Normal MAE is the mean angle, in degrees, between the reconstruction's normals and the true ones \
+            over every pixel of every ground-truth view; Chamfer is in units of the unit sphere. The scenes of \
+            `../shared/evalset` and `../shared/fixtures`, rendered by Mitsuba 3, an independent polarized renderer whose \
+            materials rmvp's model does not match exactly (Mitsuba's `pplastic`, a 30 % gold blend on the teapot): \
+            256x256 (the fixtures 128x128), 6 training and 4 held-out views (the fixtures 2), the fast preset's \
+            defaults, seed 0, one thread a run (`RAYON_NUM_THREADS=1`), the two sets side by side. Over seeds: [`design.md`](design.md#coarse-to-fine)."
+            .into(),
+        _ => "The scenes of `rmvp_pipeline::evaluation_set`, whose reflectance model is the one the reconstruction \
+            fits, rendered by `rmvp simulate` at 256x256 (6 training views, the ring's from the turntable's rings at \
+            10 and 35 degrees, the others' from -20 to 70; 6 held-out views; 32 spp, the studio light), the fast \
+            preset's defaults, seed 0, as the Mitsuba set. Bumps: fine bumps, rough and bright; knot: a trefoil tube \
+            with narrow gaps, smooth and dark; gear: sixteen sharp teeth of gold; bowl: a deep concavity that the \
+            masks do not show; spot: a smooth cow; bunny: the Stanford bunny, both of varying albedo and roughness; \
+            float: a glossy ring seen only from above, where a blob can grow under it where no view sees \
+            ([`design.md`](design.md#space-no-view-sees))."
+            .into(),
+    };
+    result.tables = vec![table];
+    result.write(&name);
 }
 
 /// `items` without repeats, in the order they first come.

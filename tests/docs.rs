@@ -1,7 +1,10 @@
 //! The documentation as a reader meets it: every relative link in the README and `docs/` leads
-//! to a file that exists (and to a heading of it, when the link names one), and nothing in the
-//! repository speaks of how it was made (working sessions, numbered issues).
+//! to a file that exists (and to a heading of it, when the link names one), `docs/benchmarks.md`
+//! is what the benchmarks' results generate, every figure the pages quote with a marker is its
+//! result's, and nothing in the repository speaks of how it was made (working sessions,
+//! numbered issues).
 
+use rmvp_testkit::results::{all_results, benchmarks_page, check_quote, quoted_figures};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
@@ -142,4 +145,26 @@ fn the_narration_check_finds_what_it_looks_for() {
     assert!(numbered("[x](a.md#the-dataset-stage)", "issue").is_none());
     assert_eq!(links("see [a](a.md), [b](https://x.org) and [c](c.md#h)"), ["a.md", "c.md#h"]);
     assert!(anchors("# Title\n## Calibration, poses and masks\n").contains("calibration-poses-and-masks"));
+}
+
+#[test]
+fn the_benchmarks_page_is_what_the_results_generate() {
+    let results = all_results().unwrap_or_else(|e| panic!("{e}"));
+    let page = std::fs::read_to_string(Path::new(ROOT).join("docs/benchmarks.md")).unwrap();
+    assert!(
+        page == benchmarks_page(&results),
+        "docs/benchmarks.md differs from bench/results: run `cargo run -p rmvp-testkit --bin benchmarks-page`"
+    );
+}
+
+#[test]
+fn every_quoted_figure_is_its_results() {
+    let results = all_results().unwrap_or_else(|e| panic!("{e}"));
+    let mut quotes = Vec::new();
+    for page in pages().into_iter().filter(|p| !p.ends_with("docs/benchmarks.md")) {
+        quotes.extend(quoted_figures(&page, &std::fs::read_to_string(&page).unwrap()));
+    }
+    assert!(quotes.len() >= 8, "only {} quoted figures found: the marker reader is broken", quotes.len());
+    let wrong: Vec<String> = quotes.iter().filter_map(|q| check_quote(q, &results).err()).collect();
+    assert!(wrong.is_empty(), "quoted figures that are not their results':\n{}", wrong.join("\n"));
 }

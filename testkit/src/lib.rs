@@ -2,6 +2,7 @@
 //! Mitsuba 3 are (`shared/fixtures` beside the checkout, or `$RMVP_FIXTURES`).
 
 pub mod mutation;
+pub mod results;
 
 use std::path::{Path, PathBuf};
 
