@@ -306,6 +306,8 @@ fn main() {
         return; // run by `cargo test --all-targets` (no `--bench`): measure only under `cargo bench`
     }
     let plan = plan();
+    // The commit, machine and date of the results: the checkout's as the run starts.
+    let started = rmvp_testkit::results::BenchResult::now("", "");
     let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench-quality");
     let subjects = subjects(&plan, &root);
     println!(
@@ -386,7 +388,7 @@ fn main() {
     }
     if plan.is_reference() {
         for set in distinct(rows.iter().map(|r| r.set)) {
-            write_results(set, &rows);
+            write_results(set, &rows, &started);
         }
     }
 }
@@ -413,8 +415,9 @@ const RESULT_COLUMNS: [&str; 7] = ["scene", "size", "Chamfer", "F-score", "norma
 
 /// Write `bench/results/quality-SET.json` with `rows`' scenes of `set`, keeping the scenes of
 /// an earlier run that this one did not reconstruct (a set is often run as two halves side by
-/// side), in the set's order, and the mean normal error over them.
-fn write_results(set: &str, rows: &[Row]) {
+/// side), in the set's order, and the mean normal error over them; its commit, machine and
+/// date are `started`'s.
+fn write_results(set: &str, rows: &[Row], started: &rmvp_testkit::results::BenchResult) {
     use rmvp_testkit::results::{BenchResult, Table};
     let name = format!("quality-{set}");
     let order: Vec<String> = match set {
@@ -435,6 +438,8 @@ fn write_results(set: &str, rows: &[Row]) {
         ),
         &format!("cargo bench --bench quality -- --sets {set} --variants full"),
     );
+    (result.commit, result.machine, result.date) =
+        (started.commit.clone(), started.machine.clone(), started.date.clone());
     let mut table = Table::new(&RESULT_COLUMNS);
     let mut all_views = Vec::new();
     for scene in &order {
