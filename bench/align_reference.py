@@ -53,6 +53,7 @@ def main():
     angle, scale, t = errors(result.transformation, truth)
     print(f"  Open3D {o3d.__version__} point-to-plane: {o3d_seconds:.2f} s, rotation error {angle:.4f} deg, "
           f"scale error {scale:+.4f} %, translation error {t:.3f} mm")
+    print(f"row\tOpen3D {o3d.__version__} point-to-plane ICP\t{o3d_seconds:.2f} s\t{angle:.4f} deg\t{scale:+.2f} %\t{t:.3f} mm")
 
     start = time.perf_counter()
     result = small_gicp.align(target, scan, init_T_target_source=rescale, registration_type="GICP",
@@ -61,6 +62,7 @@ def main():
     angle, scale, t = errors(result.T_target_source, truth)
     print(f"  small_gicp {small_gicp.__version__ if hasattr(small_gicp, '__version__') else ''} GICP: {gicp_seconds:.2f} s, "
           f"rotation error {angle:.4f} deg, scale error {scale:+.4f} %, translation error {t:.3f} mm")
+    print(f"row\tsmall_gicp GICP\t{gicp_seconds:.2f} s\t{angle:.4f} deg\t{scale:+.2f} %\t{t:.3f} mm")
     print(f"open3d_seconds {o3d_seconds:.3f}")
     print(f"small_gicp_seconds {gicp_seconds:.3f}")
 

@@ -90,6 +90,12 @@ fn main() {
         100.0 * found.inlier_ratio
     );
     println!("rust_align_seconds {seconds:.3}");
+    println!(
+        "row\trmvp (7-DoF point-to-plane, multistart)\t{seconds:.2} s\t{:.4} deg\t{:+.3} %\t{:.3} mm",
+        error.angle_deg(),
+        100.0 * (found.transform.s / truth.s - 1.0),
+        (found.transform.t - truth.t).norm()
+    );
     if let Some(dir) = std::env::var_os("RMVP_BENCH_EXPORT") {
         let dir = std::path::PathBuf::from(dir);
         scan.write(&dir.join("scan.ply")).unwrap();

@@ -2,11 +2,13 @@
 //! BayerRGPolarized12p, GigE Vision on loopback, noise-free frames so that the camera side
 //! only copies): frames per second and dropped frames for streaming alone, and for streaming
 //! with every frame decoded and processed to Stokes, AoP and DoP on a second thread (bounded
-//! queue of two frames). Run with `cargo bench -p rmvp-capture --bench acquisition`.
+//! queue of two frames). Run with `cargo bench -p rmvp-capture --bench acquisition`; writes
+//! `bench/results/acquisition.json`.
 
 use rmvp_capture::camera::{CameraDevice, CameraOptions, Grab};
 use rmvp_capture::simulator::{SimulatedCamera, SimulatorOptions, SENSOR_HEIGHT, SENSOR_WIDTH};
 use rmvp_capture::{FrameProcessor, ProcessedFrame, RawFrame};
+use rmvp_testkit::results::{BenchResult, Table};
 use std::sync::mpsc::sync_channel;
 use std::time::{Duration, Instant};
 
@@ -24,6 +26,9 @@ fn main() {
     let format = camera.configure(&settings).expect("configure");
     println!("{} at {SENSOR_WIDTH}x{SENSOR_HEIGHT}, asked for 75 frames/s, {SECONDS} s per run", format.name());
 
+    let command = "cargo bench -p rmvp-capture --bench acquisition";
+    let mut result = BenchResult::now("Acquisition from the simulated camera", command);
+    let mut table = Table::new(&["run", "frames/s", "dropped", "time-outs"]);
     for process in [false, true] {
         camera.start().expect("start");
         let (to_worker, from_camera) = sync_channel::<Vec<u8>>(2);
@@ -59,10 +64,27 @@ fn main() {
         drop(to_worker);
         let handled = worker.join().expect("worker");
         camera.stop().expect("stop");
+        let run = if process {
+            "stream + decode + Stokes, AoP, DoP on a second thread"
+        } else {
+            "stream only (grab and copy)"
+        };
+        let rate = format!("{:.1}", frames as f64 / elapsed);
         println!(
-            "{:<38} {:6.1} frames/s ({frames} frames in {elapsed:.1} s, {dropped} dropped, {timeouts} time-outs, {handled} handled)",
-            if process { "stream + decode + Stokes/AoP/DoP" } else { "stream only (grab and copy)" },
-            frames as f64 / elapsed
+            "{run:<54} {rate:>6} frames/s ({frames} frames in {elapsed:.1} s, {dropped} dropped, {timeouts} time-outs, {handled} handled)"
         );
+        if !process {
+            let lost = if dropped + timeouts == 0 { "none lost".to_string() } else { format!("{dropped} dropped") };
+            result.headline = format!("{} frames/s, {lost}", result.figure("frames_per_second", &rate));
+        }
+        table.row(vec![run.into(), rate, dropped.to_string(), timeouts.to_string()]);
     }
+    result.about = format!(
+        "{SENSOR_WIDTH}x{SENSOR_HEIGHT} `{}` frames from the simulated GenICam camera on 127.0.0.1, 75 frames/s \
+         asked, {SECONDS} s a run, camera and client in one process: the limit is the simulated camera, which sends \
+         every packet from one thread on the same cores.",
+        format.name()
+    );
+    result.tables = vec![table];
+    result.write("acquisition");
 }

@@ -94,4 +94,9 @@ fn main() {
         ours_blocked,
         theirs_blocked
     );
+    println!("row\tbuild\t{build_ours:.3} s\t{build_theirs:.3} s");
+    let rate = |rays: usize, seconds: f64| format!("{:.2} M rays/s", rays as f64 / seconds / 1e6);
+    let (camera, shadows) = (primary.len(), shadow.len());
+    println!("row\tcamera rays, closest hit ({camera})\t{}\t{}", rate(camera, ours_primary), rate(camera, theirs_primary));
+    println!("row\tshadow rays, any hit ({shadows})\t{}\t{}", rate(shadows, ours_shadow), rate(shadows, theirs_shadow));
 }
