@@ -8,7 +8,8 @@
 //! the aligned scan against the true object.
 //! `cargo bench --bench lab` (part of `./run bench`). The three sessions (calibration, object,
 //! empty lab) are captured once through the simulated camera into `target/tmp/bench-lab` and
-//! reused; delete that folder to capture them again.
+//! reused; delete that folder to capture them again. Writes `bench/results/lab.json` and
+//! `bench/results/dataset.json`.
 
 use nalgebra::Vector3;
 use rmvp_align::icp::ALIGNED_MESH;
@@ -22,6 +23,7 @@ use rmvp_dataset::session::SessionManifest;
 use rmvp_dataset::{Camera, Mesh};
 use rmvp_pipeline::build::{REFERENCE_FOLDER, SCAN_FOLDER};
 use rmvp_recon::reconstruct::MESH;
+use rmvp_testkit::results::{BenchResult, Table};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
@@ -88,6 +90,9 @@ fn main() {
     let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("bench-lab");
     let (cal, lab, empty) = (root.join("cal"), root.join("lab"), root.join("empty"));
     println!("lab benchmark: {VIEWS} views at 1224x1024 per session, simulated camera, sessions in {}", root.display());
+    let mut result = BenchResult::now("Calibration, poses and masks", "cargo bench --bench lab");
+    let mut stages = Table::new(&["stage (24 views)", "seconds"]);
+    let mut stage = |name: &str, seconds: f64| stages.row(vec![name.to_string(), format!("{seconds:.1}")]);
     for (dir, setup) in [
         (&cal, vec!["--setup", "calibration", BOARD[0], BOARD[1]]),
         (&lab, vec!["--setup", "lab", BOARD[0], BOARD[1]]),
@@ -96,6 +101,7 @@ fn main() {
         if let Some(seconds) = session(dir, &setup) {
             let name = dir.file_name().expect("named").to_string_lossy();
             println!("  capture {name:<6} {seconds:7.1} s (rendering, sensor, GenICam streaming, processing, writing)");
+            stage(&format!("capture: the `{name}` session"), seconds);
         }
     }
     let camera = root.join("camera.json");
@@ -104,6 +110,7 @@ fn main() {
     println!("stage times ({VIEWS} views):");
     let t = rmvp(&["calibrate", s(&cal), "-o", s(&camera), BOARD[0], BOARD[1]]);
     println!("  calibrate (ChArUco, 24 images)          {t:7.1} s");
+    stage("`rmvp calibrate` (ChArUco, 24 images)", t);
     let t = rmvp(&[
         "poses",
         s(&lab),
@@ -117,10 +124,13 @@ fn main() {
         BOARD[1],
     ]);
     println!("  poses --method charuco                  {t:7.1} s");
+    stage("`rmvp poses --method charuco`", t);
     let t = rmvp(&["masks", s(&lab), "--method", "grabcut", "--background", s(&empty), "-o", s(&out.join("grabcut"))]);
     println!("  masks --method grabcut                  {t:7.1} s");
+    stage("`rmvp masks --method grabcut`", t);
     let t = rmvp(&["masks", s(&lab), "--method", "difference", "--background", s(&empty), "-o", s(&out.join("masks"))]);
     println!("  masks --method difference               {t:7.1} s");
+    stage("`rmvp masks --method difference`", t);
     let t = rmvp(&[
         "poses",
         s(&lab),
@@ -134,8 +144,10 @@ fn main() {
         s(&out.join("colmap.json")),
     ]);
     println!("  poses --method colmap                   {t:7.1} s, of which COLMAP's own:");
+    stage("`rmvp poses --method colmap` (2048 features an image, exhaustive matching)", t);
     for (step, seconds) in colmap_steps(&lab.join("colmap")) {
         println!("    colmap {step:<32} {seconds:7.1} s");
+        stage(&format!("of which COLMAP's `{step}`"), seconds);
     }
 
     let truth = SimulatedScene::new(&SimulatorOptions {
@@ -150,6 +162,8 @@ fn main() {
     let distance = LabOptions::default().distance_mm;
     println!("pose accuracy against the rendered truth (worst view; centres in % of the camera distance):");
     println!("  views  method    posed  rotation (deg)  centre (%)   time (s)");
+    let mut accuracy =
+        Table::new(&["views", "method", "posed", "rotation (deg)", "centre (% of the camera distance)", "seconds"]);
     // Both rings (views alternate between them), evenly around.
     for (count, keep) in [
         (24, (0..24).collect::<Vec<usize>>()),
@@ -166,7 +180,16 @@ fn main() {
             let seconds = start.elapsed().as_secs_f64();
             if !status.status.success() {
                 let why = String::from_utf8_lossy(&status.stderr);
-                println!("  {count:>5}  {method:<8}  failed: {}", why.lines().next().unwrap_or(""));
+                let why = why.lines().next().unwrap_or("").to_string();
+                println!("  {count:>5}  {method:<8}  failed: {why}");
+                accuracy.row(vec![
+                    count.to_string(),
+                    method.into(),
+                    format!("failed: {why}"),
+                    "".into(),
+                    "".into(),
+                    "".into(),
+                ]);
                 continue;
             }
             let set = PoseSet::read(&file).expect("poses");
@@ -179,14 +202,34 @@ fn main() {
                 })
                 .unzip();
             let errors = pose_errors(&found, &reference, method == "colmap");
-            println!(
-                "  {count:>5}  {method:<8}  {:>5}  {:>14.4}  {:>10.4}  {seconds:>9.1}",
+            let cells = vec![
+                count.to_string(),
+                method.to_string(),
                 format!("{}/{count}", set.views.len()),
-                errors.max_rotation_deg(),
-                100.0 * errors.max_centre_distance() / distance
-            );
+                format!("{:.3}", errors.max_rotation_deg()),
+                format!("{:.3}", 100.0 * errors.max_centre_distance() / distance),
+                format!("{seconds:.1}"),
+            ];
+            println!("  {}", cells.join("  "));
+            if count == VIEWS {
+                let rotation = result.figure(&format!("{method}_rotation"), &cells[3]);
+                let centre = result.figure(&format!("{method}_centre"), &cells[4]);
+                if method == "charuco" {
+                    result.headline = format!("ChArUco poses {rotation} degrees, {centre} %");
+                }
+            }
+            accuracy.row(cells);
         }
     }
+    result.about = format!(
+        "A simulated lab ([`calibration.md`](calibration.md)): three sessions of {VIEWS} views at 1224x1024 through \
+         the simulated GenICam camera (the board alone, the object on the board on a textured table, the empty lab), \
+         then each stage as the command line runs it. The second table: pose accuracy against the rendered truth as \
+         the views drop (the worst view; COLMAP after a similarity fit, ChArUco as it is, since the board gives \
+         metric poses)."
+    );
+    result.tables = vec![stages, accuracy];
+    result.write("lab");
     dataset_stage(&root, &lab, &camera, &truth);
 }
 
@@ -227,18 +270,29 @@ fn dataset_stage(root: &Path, lab: &Path, camera: &Path, truth: &SimulatedScene)
     let total = rmvp(&args);
     let record = rmvp_pipeline::build::BuildRecord::read(&dataset).expect("build record");
     let reference = record.reference.as_ref().expect("reference");
+    let command = match &iterations {
+        Some(n) => format!("RMVP_BENCH_REFERENCE_ITERS={n} cargo bench --bench lab"),
+        None => "cargo bench --bench lab".to_string(),
+    };
+    let mut result = BenchResult::now("The dataset stage", &command);
+    let mut stages = Table::new(&[&format!("stage ({VIEWS} views at 1224x1024)"), "seconds"]);
+    let mut stage = |name: &str, seconds: f64| stages.row(vec![name.to_string(), format!("{seconds:.1}")]);
     println!(
         "dataset stage ({VIEWS} views, reference: {:?} preset, {} iterations, mesh at {}^3):",
         reference.preset, reference.iterations, reference.mesh_resolution
     );
-    for stage in &record.stages {
-        println!("  build {:<13}                    {:7.1} s", stage.name.to_string(), stage.seconds);
+    for s in &record.stages {
+        println!("  build {:<13}                    {:7.1} s", s.name.to_string(), s.seconds);
+        stage(&format!("build: {}", s.name), s.seconds);
     }
     println!("  build in all                            {total:7.1} s");
+    stage("`dataset build` in all", total);
     let t = rmvp(&["dataset", "publish", s(&dataset), "-o", s(&release), "--archive", "tar"]);
     println!("  publish (copy, contact sheets, SHA-256, tar) {t:7.1} s");
+    stage("`dataset publish` (copy, contact sheets, SHA-256, tar)", t);
     let t = rmvp(&["dataset", "verify", s(&release)]);
     println!("  verify                                  {t:7.1} s");
+    stage("`dataset verify`", t);
     let scan = record.scan.as_ref().expect("scan");
     println!(
         "  scan aligned: scale {:.5}, median distance {:.4} mm; masks against its silhouettes: IoU mean {:.4}",
@@ -253,12 +307,24 @@ fn dataset_stage(root: &Path, lab: &Path, camera: &Path, truth: &SimulatedScene)
     let off = scan.alignment.transform.compose(&placement);
     let centre = subject.positions.iter().map(|p| Vector3::from(p.map(|v| v as f64))).sum::<Vector3<f64>>()
         / subject.positions.len() as f64;
+    let (reference_mm, truth_mm) =
+        (chamfer(dataset.join(REFERENCE_FOLDER).join(MESH)), chamfer(dataset.join(SCAN_FOLDER).join(ALIGNED_MESH)));
+    let (rotation, centre_mm) = (off.angle_deg(), (off.apply(&centre) - centre).norm());
     println!(
-        "  against the true object: reference Chamfer {:.3} mm; ground truth Chamfer {:.3} mm, rotation off by \
-         {:.3} deg, centre off by {:.3} mm",
-        chamfer(dataset.join(REFERENCE_FOLDER).join(MESH)),
-        chamfer(dataset.join(SCAN_FOLDER).join(ALIGNED_MESH)),
-        off.angle_deg(),
-        (off.apply(&centre) - centre).norm()
+        "  against the true object: reference Chamfer {reference_mm:.3} mm; ground truth Chamfer {truth_mm:.3} mm, \
+         rotation off by {rotation:.3} deg, centre off by {centre_mm:.3} mm"
     );
+    let truth_chamfer = result.figure("scan_chamfer_mm", format!("{truth_mm:.3}"));
+    result.headline = format!("release mesh {truth_chamfer} mm from the truth");
+    result.about = format!(
+        "`rmvp dataset build` on the lab bench's {VIEWS}-view object session at 1224x1024 with a scan (the true mesh \
+         in millimetres, moved) and a panorama, the reference by the {:?} preset ({} iterations, mesh at {}^3), then \
+         `publish` and `verify`. Against the true object: the reference {reference_mm:.3} mm Chamfer; the scan fitted \
+         on it {truth_mm:.3} mm Chamfer, rotation {rotation:.3} degrees, centre {centre_mm:.3} mm off; the captured \
+         masks against the scan's silhouettes IoU {:.3}. `tests/lab.rs` runs it with a small reference, asserting \
+         with margins.",
+        reference.preset, reference.iterations, reference.mesh_resolution, scan.mask_iou_mean
+    );
+    result.tables = vec![stages];
+    result.write("dataset");
 }
