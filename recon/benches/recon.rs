@@ -7,13 +7,15 @@
 //! as trained and once rendering every sample (`min_weight` 0); `RMVP_BENCH_SCENE=DIR` trains
 //! on another scene instead of the fixture (the checkpoint's, for a model trained there);
 //! `RMVP_BENCH_TANGENT_VIEWS=N` compares a surface point with at most N views (0: every one)
-//! whatever the checkpoint's run did.
+//! whatever the checkpoint's run did. With a checkpoint it writes its preset's rows into
+//! `bench/results/recon-step.json` (keeping the other preset's).
 
 use rmvp_dataset::layout::read_scene;
 use rmvp_recon::checkpoint;
 use rmvp_recon::data::TrainingSet;
 use rmvp_recon::presets::{self, Preset};
 use rmvp_recon::train::Trainer;
+use rmvp_testkit::results::{BenchResult, Table};
 use std::time::Instant;
 
 fn main() {
@@ -35,6 +37,11 @@ fn main() {
         let recorded = checkpoint::recorded_config(&path).expect("checkpoint");
         let tangent_views: Option<usize> =
             std::env::var("RMVP_BENCH_TANGENT_VIEWS").ok().map(|s| s.parse().expect("N"));
+        let preset = [Preset::Fast, Preset::Dense, Preset::Paper]
+            .into_iter()
+            .find(|&p| presets::model(p) == recorded.model)
+            .map_or("other".to_string(), |p| serde_json::to_value(p).expect("a name").as_str().expect("a name").into());
+        let mut rows = Vec::new();
         for min_weight in [None, Some(0.0)] {
             for threads in [1, 2] {
                 let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
@@ -51,8 +58,20 @@ fn main() {
                     let (ms, rays, samples) = measure(&mut trainer, 2, steps, true);
                     let label = if min_weight.is_some() { "every sample" } else { "as trained" };
                     report(&format!("trained, {label}"), threads, ms, rays, samples);
+                    let samples_label = if min_weight.is_some() { "every" } else { "weighted" };
+                    rows.push(vec![
+                        preset.clone(),
+                        samples_label.to_string(),
+                        threads.to_string(),
+                        format!("{ms:.1}"),
+                        format!("{:.0}", rays as f64 / ms * 1e3),
+                        format!("{:.1}", samples as f64 / rays as f64),
+                    ]);
                 });
             }
+        }
+        if tangent_views.is_none() {
+            write_results(&preset, rows, &scene_dir, scene.views.len());
         }
         return;
     }
@@ -101,6 +120,37 @@ fn measure(trainer: &mut Trainer, warm: u32, n: u32, restore: bool) -> (f64, usi
     }
     times.sort_by(f64::total_cmp);
     (times[times.len() / 2], rays, samples)
+}
+
+/// The columns of the results' table.
+const COLUMNS: [&str; 6] = ["preset", "samples", "threads", "ms a step", "rays/s", "samples a ray"];
+
+/// Write `bench/results/recon-step.json`: `rows` of `preset` (trained on `scene`, of `views`
+/// views) in place of that preset's earlier rows, the other presets' kept.
+fn write_results(preset: &str, rows: Vec<Vec<String>>, scene: &std::path::Path, views: usize) {
+    let command = "RMVP_BENCH_CHECKPOINT=CHECKPOINT cargo bench -p rmvp-recon --bench recon";
+    let mut result = BenchResult::now("A training step", command);
+    let earlier =
+        BenchResult::read("recon-step").and_then(|r| r.tables.into_iter().next()).filter(|t| t.columns == COLUMNS);
+    let mut table = Table::new(&COLUMNS);
+    for row in earlier.map_or(Vec::new(), |t| t.rows).into_iter().filter(|r| r[0] != preset).chain(rows) {
+        table.row(row);
+    }
+    table.rows.sort_by_key(|r| (r[0] != "fast", r[1] != "weighted", r[2].clone()));
+    let ms = |p: &str| table.rows.iter().find(|r| r[0] == p && r[1] == "weighted" && r[2] == "2").map(|r| r[3].clone());
+    let figures: Vec<String> = ["fast", "dense"]
+        .iter()
+        .filter_map(|&p| ms(p).map(|m| format!("{p} {}", result.figure(&format!("{p}_ms"), format!("{m} ms")))))
+        .collect();
+    result.headline = format!("a trained model's step on 2 threads: {}", figures.join(", "));
+    result.about = format!(
+        "The median step of a trained model (a `rmvp recon` checkpoint, its own options), nothing else running: \
+         each preset's last run of the bench, here {preset} on `{}` ({views} views; `RMVP_BENCH_SCENE`, the spot \
+         fixture by default). Samples rendered: those that carry weight (the default) or every one.",
+        scene.file_name().map_or(String::new(), |n| n.to_string_lossy().into_owned())
+    );
+    result.tables = vec![table];
+    result.write("recon-step");
 }
 
 /// One line of the table.
