@@ -23,7 +23,7 @@ pub enum Preset {
     Paper,
     /// The fast preset's networks on a finer, larger hash grid (to 2048 cells per axis), twice
     /// the rays and 4000 iterations: the reference shape of a dataset from 20-60 views at
-    /// 1224x1024 (24 views: about 9 minutes on two threads).
+    /// 1224x1024 (24 views: about 8 minutes on two threads).
     Dense,
 }
 
