@@ -188,7 +188,8 @@ pub fn results_dir() -> PathBuf {
     checkout().join("bench/results")
 }
 
-/// The checkout's commit, short, with `-dirty` where tracked files differ from it.
+/// The checkout's commit, short, with `-dirty` where tracked files differ from it (the
+/// benchmarks' own outputs, `bench/results` and `docs/benchmarks.md`, apart).
 fn commit() -> String {
     let git = |args: &[&str]| {
         std::process::Command::new("git")
@@ -200,7 +201,9 @@ fn commit() -> String {
             .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
     };
     let Some(head) = git(&["rev-parse", "--short", "HEAD"]) else { return "unknown".into() };
-    let dirty = git(&["status", "--porcelain", "--untracked-files=no"]).is_some_and(|s| !s.is_empty());
+    let changed =
+        ["status", "--porcelain", "--untracked-files=no", "--", ".", ":!bench/results", ":!docs/benchmarks.md"];
+    let dirty = git(&changed).is_some_and(|s| !s.is_empty());
     if dirty {
         head + "-dirty"
     } else {
