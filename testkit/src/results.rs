@@ -194,7 +194,7 @@ fn commit() -> String {
     let git = |args: &[&str]| {
         std::process::Command::new("git")
             .args(args)
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .current_dir(checkout())
             .output()
             .ok()
             .filter(|o| o.status.success())
