@@ -7,7 +7,8 @@ scripts/install-system-deps.sh bench
 out=target/bench
 mkdir -p "$out"
 cargo run --release --quiet -- demo -o "$out/demo" >/dev/null
-frame="$PWD/$out/demo/frame.raw"
+# The demo's first view's raw frame (its session keeps each view's frames under raw/).
+frame=$(ls "$PWD/$out/demo/session/views/000/raw/"*.raw | head -n 1)
 echo "machine: $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 RMVP_BENCH_FRAME="$frame" cargo bench --quiet -p rmvp-capture --bench frame 2>/dev/null | tee "$out/rust.txt"
 /usr/bin/python3 bench/frame_python.py "$frame" | tee "$out/python.txt"
