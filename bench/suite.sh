@@ -11,6 +11,7 @@ rm -rf "$work"
 mkdir -p "$work"
 ln -s "$(cd .. && pwd)/shared" "$work/shared"
 git clone --quiet . "$work/rmvp"
+commit=$(git -C "$work/rmvp" rev-parse --short HEAD)
 start=$(date +%s)
 status=0
 (cd "$work/rmvp" && ./run test) > "$work/log.txt" 2>&1 || status=$?
@@ -31,7 +32,8 @@ cat <<JSON | target/release/bench-result suite
   "headline": "$minutes from a fresh clone ($rust Rust and $python Python tests)",
   "about": "\`./run test\` in a fresh clone (\`git clone\`), nothing else running: every Rust test, the Python package built into \`.venv\` and its tests, rustfmt and clippy; the crates from cargo's cache where it has them. CI's budget is 25 minutes.",
   "tables": [{"columns": ["figure", "value"], "rows": [["\`./run test\`", "$minutes"], ["Rust tests", "$rust"], ["Python tests", "$python"]]}],
-  "figures": {"minutes": "$minutes", "rust_tests": "$rust", "python_tests": "$python"}
+  "figures": {"minutes": "$minutes", "rust_tests": "$rust", "python_tests": "$python"},
+  "commit": "$commit"
 }
 JSON
 cargo run --release --quiet -p rmvp-testkit --bin benchmarks-page

@@ -1,8 +1,8 @@
 //! Write a benchmark's result, `bench/results/NAME.json`, from what a script measured:
 //! `bench-result NAME < MEASURED.json`, where the JSON holds the result's `title`, `command`,
-//! `headline`, `about`, `tables` and `figures` ([`BenchResult`]); the commit, the machine and
-//! the date are this checkout's and this machine's, now. The shell benchmarks (`bench/*.sh`)
-//! write theirs with it.
+//! `headline`, `about`, `tables` and `figures` ([`BenchResult`]), and the `commit` measured
+//! where it is not this checkout's (a fresh clone's); the machine and the date are this
+//! machine's, now. The shell benchmarks (`bench/*.sh`) write theirs with it.
 
 use rmvp_testkit::results::{BenchResult, Table};
 use serde::Deserialize;
@@ -21,6 +21,9 @@ struct Measured {
     tables: Vec<Table>,
     #[serde(default)]
     figures: BTreeMap<String, String>,
+    /// The commit measured, where it is not this checkout's.
+    #[serde(default)]
+    commit: Option<String>,
 }
 
 fn main() {
@@ -37,5 +40,8 @@ fn main() {
     result.about = measured.about;
     result.tables = measured.tables;
     result.figures = measured.figures;
+    if let Some(commit) = measured.commit {
+        result.commit = commit;
+    }
     result.write(name);
 }
