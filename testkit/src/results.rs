@@ -281,7 +281,8 @@ pub fn benchmarks_page(results: &[(String, BenchResult)]) -> String {
          from those files (`cargo run -p rmvp-testkit --bin benchmarks-page`), and the docs test fails when \
          it differs from them. What a change bought is a line in [`CHANGELOG.md`](../CHANGELOG.md); why \
          the defaults are what they are, [`design.md`](design.md#why-the-reconstructions-defaults-are-what-they-are). \
-         `./run bench` runs all but the suite's, the demo's and the GPU's.\n\n\
+         `./run bench` runs those that need nothing of their own: not the training step's (it takes a \
+         checkpoint), a whole reconstruction's (it compares two binaries), the demo's, the suite's or the GPU's.\n\n\
          The machines are shared virtual machines (Debian 12, 24 GiB or more); a command's time varies by \
          up to 30 % from day to day on one of them, so compare times within a table.\n\n",
     );
