@@ -151,6 +151,20 @@ fn distorted_session(dir: &Path, d: Option<&Distortion>, masks: &Path, correctio
     std::fs::write(dir.join("session.json"), serde_json::to_string_pretty(&manifest).unwrap()).unwrap();
 }
 
+#[test]
+fn a_hand_made_mask_of_the_wrong_size_is_named_by_its_file() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (session, masks, corrections) = (tmp.path().join("session"), tmp.path().join("masks"), tmp.path().join("c"));
+    distorted_session(&session, None, &masks, &corrections);
+    image::GrayImage::new(1, 1).save(masks.join("005.jpg")).unwrap();
+    let out = tmp.path().join("masks-out");
+    let err = fails(&["masks", s(&session), "--method", "folder", "--from", s(&masks), "-o", s(&out)]);
+    let file = masks.join("005.jpg");
+    let named = format!("{}: the mask of view 005 is 1x1, the view's ", file.display());
+    assert!(err.contains(&named), "{err}");
+    assert_eq!(err.matches("005.jpg").count(), 1, "the file named once: {err}");
+}
+
 /// A COLMAP text model of the spot's training cameras, all with one camera of `model`.
 fn colmap_model(dir: &Path, model: &str, params: &[f64]) {
     std::fs::create_dir_all(dir).unwrap();

@@ -414,6 +414,8 @@ pub fn make_masks(dir: &Path, options: &MaskOptions, output: &Path) -> Result<Ma
                 })?;
                 read_view_stokes(folder, v)
             };
+            // The picture the mask was read from, where it was read from one.
+            let mut picture_file = None;
             let mask = match options.method {
                 MaskMethod::Threshold => threshold_mask(&stokes.s0, options.threshold, options)?,
                 MaskMethod::Difference => difference_mask(&stokes, &plate(())?, options)?,
@@ -436,7 +438,9 @@ pub fn make_masks(dir: &Path, options: &MaskOptions, output: &Path) -> Result<Ma
                     let path = find_picture(&folder, &view.name).ok_or_else(|| {
                         Error::MaskInput(format!("{} has no picture of view {}", folder.display(), view.name))
                     })?;
-                    read_picture(&path)?.pixels.to_mask()
+                    let mask = read_picture(&path)?.pixels.to_mask();
+                    picture_file = Some(path);
+                    mask
                 }
             };
             let correction = options.corrections.as_ref().and_then(|c| find_picture(c, &view.name));
@@ -445,9 +449,10 @@ pub fn make_masks(dir: &Path, options: &MaskOptions, output: &Path) -> Result<Ma
                 None => (mask, false),
             };
             if mask.size() != stokes.s0.size() {
-                let whose = match &correction {
-                    Some(path) => format!("{}: the correction", path.display()),
-                    None => "the mask".to_string(),
+                let whose = match (&correction, &picture_file) {
+                    (Some(path), _) => format!("{}: the correction", path.display()),
+                    (None, Some(path)) => format!("{}: the mask", path.display()),
+                    (None, None) => "the mask".to_string(),
                 };
                 return Err(Error::MaskInput(format!(
                     "{whose} of view {} is {}x{}, the view's {} {}x{}",
