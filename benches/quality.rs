@@ -460,9 +460,6 @@ fn write_results(set: &str, rows: &[Row], started: &rmvp_testkit::results::Bench
         };
         all_views.push(cells[6].parse::<f64>().expect("a normal error"));
         result.figure(scene, &cells[6]);
-        if scene == "float" {
-            result.figure("float_chamfer", &cells[2]);
-        }
         table.row(cells);
     }
     let count = all_views.len();
