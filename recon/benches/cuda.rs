@@ -4,7 +4,8 @@
 //! made bumpy (every level on), and with `RMVP_BENCH_SCENE=DIR` the fast preset trained on that
 //! scene for `RMVP_BENCH_ITERS` iterations (default 500). Run with
 //! `cargo bench -p rmvp-recon --features cuda --bench cuda` on a machine with an NVIDIA GPU
-//! (`RMVP_BENCH_RES=fast:256,dense:384,trained:512` grid cells per axis).
+//! (`RMVP_BENCH_RES=fast:256,dense:384,trained:512` grid cells per axis); writes
+//! `bench/results/cuda.json`.
 
 use rmvp_dataset::layout::read_scene;
 use rmvp_dataset::rng::Rng;
@@ -14,6 +15,7 @@ use rmvp_recon::extract::{extract_mesh, CpuSdf, SdfEvaluator};
 use rmvp_recon::model::Model;
 use rmvp_recon::presets::{self, Preset};
 use rmvp_recon::train::Trainer;
+use rmvp_testkit::results::{BenchResult, Table};
 use std::time::Instant;
 
 fn seconds(start: Instant) -> f64 {
@@ -94,14 +96,50 @@ fn main() {
         let start = Instant::now();
         let gpu_mesh = extract_mesh(&gpu, n, &s.frame, s.fd_step).expect("gpu mesh");
         let gpu_mesh_s = seconds(start);
-        rows.push(format!(
-            "| {name} | {n}^3 | {cpu_grid:.2} | {setup:.2} | {gpu_grid:.3} | {worst:.1e} | {flipped} | {cpu_mesh_s:.2} | {gpu_mesh_s:.2} | {} / {} |",
-            cpu_mesh.positions.len(),
-            gpu_mesh.positions.len()
-        ));
+        rows.push(vec![
+            name.to_string(),
+            format!("{n}^3"),
+            format!("{cpu_grid:.2}"),
+            format!("{setup:.2}"),
+            format!("{gpu_grid:.3}"),
+            format!("{worst:.1e}"),
+            flipped.to_string(),
+            format!("{cpu_mesh_s:.2}"),
+            format!("{gpu_mesh_s:.2}"),
+            format!("{} / {}", cpu_mesh.positions.len(), gpu_mesh.positions.len()),
+        ]);
     }
-    println!("cuda benchmark: {} CPU threads, GPU {device}", rayon::current_num_threads());
-    println!("| field | grid | CPU grid s | GPU set-up s | GPU grid s | largest difference | signs differing | CPU mesh s | GPU mesh s | vertices CPU / GPU |");
-    println!("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |");
-    rows.iter().for_each(|r| println!("{r}"));
+    let threads = rayon::current_num_threads();
+    println!("cuda benchmark: {threads} CPU threads, GPU {device}");
+    let mut table = Table::new(&[
+        "field",
+        "grid",
+        "CPU grid s",
+        "GPU set-up s",
+        "GPU grid s",
+        "largest difference",
+        "signs differing",
+        "CPU mesh s",
+        "GPU mesh s",
+        "vertices CPU / GPU",
+    ]);
+    for row in rows {
+        println!("| {} |", row.join(" | "));
+        table.row(row);
+    }
+    let mut result =
+        BenchResult::now("Mesh extraction on a GPU", "cargo bench -p rmvp-recon --features cuda --bench cuda");
+    result.machine.gpu = device.clone();
+    if let Some(first) = table.rows.first() {
+        let seconds = result.figure("gpu_grid_seconds", &first[4]);
+        result.headline = format!("{} SDF grid in {seconds} s on the GPU", first[1]);
+    }
+    result.about = format!(
+        "The SDF on the `(n + 1)^3` grid a mesh needs, on the CPU ({threads} threads) and on {device} (the kernel and \
+         the download; the set-up is NVRTC's compile and the upload, once a process), and the whole mesh (the grid, \
+         marching tetrahedra on the CPU, the vertex normals); the fields are the fast and dense presets' starts made \
+         bumpy (every level on) and, with `RMVP_BENCH_SCENE`, the fast preset trained on a scene."
+    );
+    result.tables = vec![table];
+    result.write("cuda");
 }
