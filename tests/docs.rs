@@ -4,7 +4,7 @@
 //! result's, and nothing in the repository speaks of how it was made (working sessions,
 //! numbered issues).
 
-use rmvp_testkit::results::{all_results, benchmarks_page, check_quote, quoted_figures};
+use rmvp_testkit::results::{all_results, anchor, benchmarks_page, check_quote, quoted_figures};
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
@@ -24,7 +24,7 @@ fn pages() -> Vec<PathBuf> {
     pages
 }
 
-/// The anchors GitHub gives a page's headings: lower case, punctuation dropped, spaces to `-`.
+/// The anchors GitHub gives a page's headings ([`anchor`]).
 fn anchors(page: &str) -> BTreeSet<String> {
     let mut inside_code = false;
     let mut anchors = BTreeSet::new();
@@ -35,13 +35,7 @@ fn anchors(page: &str) -> BTreeSet<String> {
         if inside_code || !line.starts_with('#') {
             continue;
         }
-        let title = line.trim_start_matches('#').trim().to_lowercase();
-        let anchor: String = title
-            .chars()
-            .filter(|c| c.is_alphanumeric() || *c == ' ' || *c == '-' || *c == '_')
-            .map(|c| if c == ' ' { '-' } else { c })
-            .collect();
-        anchors.insert(anchor);
+        anchors.insert(anchor(line.trim_start_matches('#').trim()));
     }
     anchors
 }

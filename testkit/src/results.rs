@@ -246,8 +246,8 @@ pub fn all_results() -> Result<Vec<(String, BenchResult)>, String> {
     Ok(results)
 }
 
-/// The anchor GitHub gives a heading.
-fn anchor(title: &str) -> String {
+/// The anchor GitHub gives a heading: lower case, punctuation dropped, spaces to `-`.
+pub fn anchor(title: &str) -> String {
     title
         .to_lowercase()
         .chars()
