@@ -1,5 +1,6 @@
 //! Capture sessions end to end: `rmvp capture` against `rmvp simulate-camera` (a GenICam GigE
-//! Vision camera on loopback, in its own process so that it can be killed).
+//! Vision camera on a loopback address of its own, in its own process so that it can be
+//! killed), opened by its address: serials repeat when a second suite runs beside this one.
 
 use rmvp_capture::correction::subtract_dark;
 use rmvp_capture::simulator::{SimulatedScene, SimulatorOptions};
@@ -12,11 +13,15 @@ use std::process::{Child, Command, Output, Stdio};
 use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-/// One simulated camera per address: tests take turns.
-static LOOPBACK: Mutex<()> = Mutex::new(());
+/// One rig at a time: each renders and streams at full speed on the machine's cores, and a
+/// frame that waits behind another test's is a frame timing out.
+static ONE_RIG: Mutex<()> = Mutex::new(());
 
-/// A simulated camera process, killed when dropped.
-struct SimulatedCameraProcess(Child);
+/// A simulated camera process, killed when dropped, and the address it answers on.
+struct SimulatedCameraProcess {
+    child: Child,
+    address: String,
+}
 
 impl SimulatedCameraProcess {
     fn start(serial: &str, views: usize, extra: &[&str]) -> Self {
@@ -29,15 +34,16 @@ impl SimulatedCameraProcess {
             .expect("rmvp runs");
         let mut lines = BufReader::new(child.stderr.take().unwrap()).lines();
         let ready = lines.next().expect("a line").unwrap();
-        assert!(ready.contains("ready"), "{ready}");
+        let address = ready.split("ready on ").nth(1).and_then(|rest| rest.split_whitespace().next());
+        let address = address.unwrap_or_else(|| panic!("no address in {ready:?}")).to_string();
         // Keep draining its stderr so that it never blocks on a full pipe.
         std::thread::spawn(move || lines.for_each(drop));
-        Self(child)
+        Self { child, address }
     }
 
     fn kill(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
+        let _ = self.child.kill();
+        let _ = self.child.wait();
     }
 }
 
@@ -47,7 +53,7 @@ impl Drop for SimulatedCameraProcess {
     }
 }
 
-/// What each test starts from: its turn on the loopback address, a simulated camera process
+/// What each test starts from: its turn ([`ONE_RIG`]), a simulated camera process
 /// (extra `rmvp simulate-camera` arguments) and an empty session folder. Fields drop in order:
 /// the camera stops before the folder goes and the turn is passed on.
 struct Rig {
@@ -59,16 +65,16 @@ struct Rig {
 
 impl Rig {
     fn new(serial: &str, views: usize, camera_args: &[&str]) -> Self {
-        let turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+        let turn = ONE_RIG.lock().unwrap_or_else(|e| e.into_inner());
         let tmp = tempfile::tempdir().unwrap();
         let camera = SimulatedCameraProcess::start(serial, views, camera_args);
         Self { dir: tmp.path().join("session"), camera, _tmp: tmp, _turn: turn }
     }
 }
 
-fn capture_command(serial: &str, dir: &Path, extra: &[&str]) -> Command {
+fn capture_command(camera: &SimulatedCameraProcess, dir: &Path, extra: &[&str]) -> Command {
     let mut command = Command::new(env!("CARGO_BIN_EXE_rmvp"));
-    command.args(["capture", "--camera", serial, "--object", "spot", "-o", dir.to_str().unwrap()]);
+    command.args(["capture", "--camera", &camera.address, "--object", "spot", "-o", dir.to_str().unwrap()]);
     if !extra.contains(&"--views") {
         command.args(["--views", "6"]);
     }
@@ -136,7 +142,7 @@ fn a_six_view_session_matches_the_renderer_within_the_noise() {
     let rig = Rig::new("RMVPSESS01", 6, &[]);
     let dir = rig.dir.clone();
     // Dark frames (the simulated rig's lens cap) remove the black level.
-    let out = run(capture_command("RMVPSESS01", &dir, &["--dark", "4"]));
+    let out = run(capture_command(&rig.camera, &dir, &["--dark", "4"]));
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let manifest = SessionManifest::read(&dir).unwrap();
     assert_eq!((manifest.dark.len(), manifest.dark[0].frames), (1, 4));
@@ -173,7 +179,7 @@ fn a_six_view_session_matches_the_renderer_within_the_noise() {
 fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() {
     let mut rig = Rig::new("RMVPKILL01", 6, &[]);
     let dir = rig.dir.clone();
-    let session = capture_command("RMVPKILL01", &dir, &[]).stderr(Stdio::piped()).spawn().unwrap();
+    let session = capture_command(&rig.camera, &dir, &[]).stderr(Stdio::piped()).spawn().unwrap();
     let start = Instant::now();
     while SessionManifest::read(&dir).map_or(0, |m| m.views.len()) < 2 {
         assert!(start.elapsed() < Duration::from_secs(120), "no progress");
@@ -198,9 +204,9 @@ fn a_camera_killed_mid_session_leaves_a_partial_session_that_resume_completes() 
 
     // Without --resume the session is refused; with it, it completes and keeps what was there.
     rig.camera = SimulatedCameraProcess::start("RMVPKILL01", 6, &[]);
-    let refused = run(capture_command("RMVPKILL01", &dir, &[]));
+    let refused = run(capture_command(&rig.camera, &dir, &[]));
     assert!(String::from_utf8_lossy(&refused.stderr).contains("--resume"));
-    let out = run(capture_command("RMVPKILL01", &dir, &["--resume"]));
+    let out = run(capture_command(&rig.camera, &dir, &["--resume"]));
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let resumed = SessionManifest::read(&dir).unwrap();
     assert!(resumed.complete);
@@ -221,7 +227,7 @@ fn hdr_brackets_recover_highlights_the_long_exposure_clips() {
     let rig = Rig::new("RMVPHDR01", 2, &[]);
     let dir = rig.dir.clone();
     let args = ["--views", "2", "--hdr", "4000,120000", "--average", "2", "--dark", "2"];
-    let out = run(capture_command("RMVPHDR01", &dir, &args));
+    let out = run(capture_command(&rig.camera, &dir, &args));
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let manifest = SessionManifest::read(&dir).unwrap();
     assert_eq!(manifest.views[0].frames, 4);
@@ -308,7 +314,7 @@ fn hdr_brackets_recover_highlights_the_long_exposure_clips() {
 fn the_operator_presses_enter_between_views_and_a_closed_stdin_stops_cleanly() {
     let rig = Rig::new("RMVPENTER1", 3, &[]);
     let dir = rig.dir.clone();
-    let mut command = capture_command("RMVPENTER1", &dir, &["--views", "3", "--mode", "interactive"]);
+    let mut command = capture_command(&rig.camera, &dir, &["--views", "3", "--mode", "interactive"]);
     let mut child = command.stdin(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
     // Enter for two views, then the operator leaves (stdin closed).
     child.stdin.take().unwrap().write_all(b"\n\n").unwrap();
@@ -327,7 +333,7 @@ fn the_operator_presses_enter_between_views_and_a_closed_stdin_stops_cleanly() {
 fn frames_lost_on_the_link_are_counted_and_grabbed_again() {
     let rig = Rig::new("RMVPLOSS01", 2, &["--lost-packets", "0.00012", "--noise-free"]);
     let dir = rig.dir.clone();
-    let out = run(capture_command("RMVPLOSS01", &dir, &["--views", "2", "--average", "8"]));
+    let out = run(capture_command(&rig.camera, &dir, &["--views", "2", "--average", "8"]));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{stderr}");
     let manifest = SessionManifest::read(&dir).unwrap();
@@ -346,7 +352,7 @@ fn frames_lost_on_the_link_are_counted_and_grabbed_again() {
 #[test]
 fn a_camera_left_with_gamma_and_a_mirrored_readout_is_put_right_and_its_state_recorded() {
     let rig = Rig::new("RMVPLEFT01", 1, &["--left-with", "gamma,reverse-x,odd-offset,adc8", "--noise-free"]);
-    let out = run(capture_command("RMVPLEFT01", &rig.dir, &["--views", "1"]));
+    let out = run(capture_command(&rig.camera, &rig.dir, &["--views", "1"]));
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let features = SessionManifest::read(&rig.dir).unwrap().camera.features;
     for (feature, value) in [
@@ -368,7 +374,7 @@ fn a_camera_left_with_gamma_and_a_mirrored_readout_is_put_right_and_its_state_re
     // Left mirrored with the readout locked, the camera cannot be put right: refused, nothing
     // captured.
     let rig = Rig::new("RMVPLOCK01", 1, &["--left-with", "reverse-x,locked-readout", "--noise-free"]);
-    let out = run(capture_command("RMVPLOCK01", &rig.dir, &["--views", "1"]));
+    let out = run(capture_command(&rig.camera, &rig.dir, &["--views", "1"]));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "{stderr}");
     assert!(stderr.contains("ReverseX") && stderr.contains("locked") && stderr.contains("RMVPLOCK01"), "{stderr}");
@@ -380,7 +386,7 @@ fn sessions_run_against_real_flir_descriptions_as_against_our_own() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/genicam");
     let session = |serial: &str, camera_args: &[&str]| {
         let rig = Rig::new(serial, 2, &[&["--noise-free", "--left-with", "gamma,reverse-x"], camera_args].concat());
-        let out = run(capture_command(serial, &rig.dir, &["--views", "2"]));
+        let out = run(capture_command(&rig.camera, &rig.dir, &["--views", "2"]));
         assert!(out.status.success(), "{camera_args:?}: {}", String::from_utf8_lossy(&out.stderr));
         let manifest = SessionManifest::read(&rig.dir).unwrap();
         manifest.verify(&rig.dir).unwrap();

@@ -19,9 +19,9 @@ fn main() {
         return; // run by `cargo test --all-targets` (no `--bench`): measure only under `cargo bench`
     }
     let config =
-        SimulatorOptions { serial: "RMVPBENCH1".into(), views: 1, noise: false, ..SimulatorOptions::default() };
-    let _sim = SimulatedCamera::start(&config).expect("simulated camera");
-    let mut camera = CameraDevice::open(Some("RMVPBENCH1")).expect("open");
+        SimulatorOptions { serial: Some("RMVPBENCH1".into()), views: 1, noise: false, ..SimulatorOptions::default() };
+    let sim = SimulatedCamera::start(&config).expect("simulated camera");
+    let mut camera = CameraDevice::open(Some(&sim.address.to_string())).expect("open");
     let settings = CameraOptions { frame_rate: Some(75.0), exposure_us: 5_000.0, ..CameraOptions::default() };
     let format = camera.configure(&settings).expect("configure");
     println!("{} at {SENSOR_WIDTH}x{SENSOR_HEIGHT}, asked for 75 frames/s, {SECONDS} s per run", format.name());

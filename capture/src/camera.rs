@@ -9,8 +9,60 @@ use aravis::glib::prelude::Cast;
 use aravis::prelude::*;
 pub use rmvp_dataset::session::{CameraIdentity, CameraOptions, TriggerSource};
 use serde::{Deserialize, Serialize};
+use std::net::{Ipv4Addr, SocketAddrV4};
 use std::sync::{Mutex, OnceLock};
 use std::time::Duration;
+
+pub mod holders;
+pub mod polarizers;
+
+/// GigE Vision's bootstrap register of the primary (controlling) application's IP address.
+const PRIMARY_APPLICATION_IP: u64 = 0x0a14;
+/// GigE Vision's bootstrap register of the primary application's UDP port.
+const PRIMARY_APPLICATION_PORT: u64 = 0x0a10;
+
+/// Who controls an open camera.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Control {
+    /// This process.
+    Ours,
+    /// Another application, at the address and port the camera reports (`None`: it does not
+    /// say; GigE Vision before 2.0).
+    Elsewhere(Option<SocketAddrV4>),
+}
+
+/// What to tell the user when another application holds a GigE Vision camera's control
+/// channel, at `holder` as the camera reports it.
+pub fn controlled_elsewhere(holder: Option<SocketAddrV4>) -> String {
+    let by = match holder {
+        Some(address) => format!("another application at {address}"),
+        None => "another application (the camera does not say which)".into(),
+    };
+    format!(
+        "is controlled by {by}: close it (SpinView, another rmvp, any GigE Vision viewer), or wait for \
+         it to let go; a camera takes commands from one application at a time, and one that stopped \
+         without letting go is free again after its heartbeat timeout (a few seconds)"
+    )
+}
+
+/// What to tell the user when a USB3 Vision camera (USB serial `serial`) is claimed by another
+/// application: the processes holding its device node, where this user may see them.
+fn usb_claimed_elsewhere(serial: &str) -> String {
+    let node = holders::usb_device_node(serial);
+    let holders = node.as_deref().map(holders::holders_of).unwrap_or_default();
+    let by = match (&node, holders.is_empty()) {
+        (Some(node), false) => format!(
+            "{} (holding {})",
+            holders.iter().map(ToString::to_string).collect::<Vec<_>>().join(", "),
+            node.display()
+        ),
+        _ => "another application (not one this user can see)".into(),
+    };
+    format!(
+        "is controlled by {by}: close it (SpinView, another rmvp, any USB3 Vision viewer); the kernel \
+         gives a USB camera to one application at a time"
+    )
+}
 
 /// A camera aravis can see.
 #[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -132,13 +184,33 @@ const STREAM_BUFFERS: usize = 8;
 
 impl CameraDevice {
     /// Open the first camera (`None`), or the one whose serial number, address or aravis id is
-    /// `selector`.
+    /// `selector`, to control it. A camera that another application controls is refused,
+    /// naming that application ([`controlled_elsewhere`]).
     pub fn open(selector: Option<&str>) -> Result<Self> {
+        let (camera, control) = Self::open_to_inspect(selector)?;
+        match control {
+            Control::Ours => Ok(camera),
+            Control::Elsewhere(holder) => Err(Error::camera(&camera.name, controlled_elsewhere(holder))),
+        }
+    }
+
+    /// Open a camera as [`CameraDevice::open`] does, also when another application controls it
+    /// (then its features can be read, not written), and say who controls it.
+    pub fn open_to_inspect(selector: Option<&str>) -> Result<(Self, Control)> {
         let name = selector.unwrap_or("first camera").to_string();
-        let id = selector
-            .map(|s| list_devices().into_iter().find(|d| d.selected_by(s)).map_or_else(|| s.to_string(), |d| d.id));
+        // An address names one camera; a serial may not (two simulated cameras, two suites), so
+        // an address goes to aravis as it is.
+        let id = selector.map(|s| match s.parse::<Ipv4Addr>() {
+            Ok(_) => s.to_string(),
+            Err(_) => list_devices().into_iter().find(|d| d.selected_by(s)).map_or_else(|| s.to_string(), |d| d.id),
+        });
         let camera = aravis::Camera::new(id.as_deref()).map_err(|e| {
-            Error::camera(&name, format!("cannot open ({e}); cameras found: {}", describe(&list_devices())))
+            let message = e.to_string();
+            if message.contains("LIBUSB_ERROR_BUSY") {
+                let serial = id.as_deref().and_then(|id| id.rsplit('-').next()).unwrap_or_default();
+                return Error::camera(&name, usb_claimed_elsewhere(serial));
+            }
+            Error::camera(&name, format!("cannot open ({message}); cameras found: {}", describe(&list_devices())))
         })?;
         let device = camera.device().ok_or_else(|| Error::camera(&name, "no GenICam device behind the camera"))?;
         let mut camera = Self {
@@ -152,8 +224,22 @@ impl CameraDevice {
         };
         let identity = camera.identity();
         camera.name = format!("{} {} ({})", identity.vendor, identity.model, identity.serial);
+        let control = camera.control();
         camera.read_geometry()?;
-        Ok(camera)
+        Ok((camera, control))
+    }
+
+    /// Who controls the camera. Over USB3 Vision this process, once it is open (a camera
+    /// another application holds does not open).
+    fn control(&self) -> Control {
+        let Some(gv) = self.device.downcast_ref::<aravis::GvDevice>() else { return Control::Ours };
+        if gv.is_controller() {
+            return Control::Ours;
+        }
+        let read = |address| self.device.read_register(address).ok().map(|(_, v)| v);
+        let ip = read(PRIMARY_APPLICATION_IP).filter(|&ip| ip != 0);
+        let port = read(PRIMARY_APPLICATION_PORT).unwrap_or(0) as u16;
+        Control::Elsewhere(ip.map(|ip| SocketAddrV4::new(Ipv4Addr::from(ip), port)))
     }
 
     /// The camera's name in messages: vendor, model and serial.
@@ -284,12 +370,16 @@ impl CameraDevice {
     }
 
     /// Put the camera in a known state and apply `settings`, reading back every value written:
-    /// pixel format (negotiated) and an ADC depth to match, gamma off, readout unmirrored and
+    /// a camera without polarizers is refused ([`polarizers::polarizer_evidence`]); pixel
+    /// format (negotiated) and an ADC depth to match, gamma off, readout unmirrored and
     /// offsets that keep the mosaic's phase ([`CameraDevice::keep_the_mosaic`]), auto exposure
     /// and gain off, exposure, gain, then the frame rate (its maximum depends on the exposure)
     /// and the trigger. Returns the pixel format chosen.
     pub fn configure(&mut self, settings: &CameraOptions) -> Result<PixelFormat> {
-        let format = choose_pixel_format(&self.offered_pixel_formats()?, settings.pixel_format.as_deref())?;
+        let offered = self.offered_pixel_formats()?;
+        polarizers::polarizer_evidence(&self.identity().model, &offered, settings.polarized_sensor)
+            .map_err(|message| Error::camera(&self.name, message))?;
+        let format = choose_pixel_format(&offered, settings.pixel_format.as_deref())?;
         // The buffer pool is sized for the payload: a new format needs a new pool.
         self.stream = None;
         self.write("PixelFormat", &format.name())?;

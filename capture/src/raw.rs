@@ -29,6 +29,12 @@ impl FormatFamily {
         ("Mono", FormatFamily::Mono),
     ];
 
+    /// Whether the name says the sensor has polarizers (`BayerRG*` and `Mono*` name plain
+    /// sensors; polarized cameras may offer their bytes under those names too).
+    pub fn names_polarizers(self) -> bool {
+        matches!(self, FormatFamily::BayerRGPolarized | FormatFamily::Polarized)
+    }
+
     /// The sensor mosaic this family is read with.
     pub fn layout(self) -> SensorLayout {
         match self {

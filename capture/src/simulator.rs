@@ -1,5 +1,6 @@
-//! A simulated polarization camera that is a real GenICam device: an aravis GigE Vision fake
-//! camera on loopback, described by our own GenICam XML (`capture/genicam/`: the FLIR Blackfly
+//! A simulated polarization camera that is a real GenICam device: a GigE Vision camera on an
+//! address of its own ([`gige`]: any number run side by side on one host) over aravis's fake
+//! camera registers, described by our own GenICam XML (`capture/genicam/`: the FLIR Blackfly
 //! S BFS-U3-51S5PC-C features rmvp uses, on a 2448x2048 sensor), streaming raw frames that our
 //! renderer and sensor model make of an object on a simulated motorised turntable.
 //!
@@ -9,6 +10,7 @@
 //! rig; frames show the pose the turntable has reached.
 
 mod firmware;
+pub mod gige;
 pub mod served;
 
 use crate::raw::PixelFormat;
@@ -16,6 +18,7 @@ use crate::sensor::SensorModel;
 use crate::RawFrame;
 use crate::{Error, Result};
 use aravis_sys as ffi;
+use gige::Registers;
 use rmvp_calib::board::BoardOptions;
 use rmvp_calib::lab::{calibration_cameras, calibration_parts, lab_environment, LabOptions};
 use rmvp_dataset::rng::Rng;
@@ -124,9 +127,11 @@ pub const PIXEL_FORMATS: [(&str, u32); 8] = [
 /// What the simulated camera shows and how it behaves.
 #[derive(Clone, Debug)]
 pub struct SimulatorOptions {
-    /// Serial number it reports (and is opened by).
-    pub serial: String,
-    /// Network interface (name or IPv4 address) it answers on.
+    /// Serial number it reports; `None`: `RMVPSIM` and four digits of its address
+    /// (`RMVPSIM0001` on 127.0.0.1), unique on the host.
+    pub serial: Option<String>,
+    /// Where it answers: `lo` for the first loopback address no other camera holds, an IPv4
+    /// address, or a network interface's name ([`gige::Endpoint::bind`]).
     pub interface: String,
     /// Object on the turntable (PLY/OBJ); `None`: the built-in "spot".
     pub mesh: Option<PathBuf>,
@@ -170,8 +175,8 @@ pub enum SimulatedSetup {
 impl Default for SimulatorOptions {
     fn default() -> Self {
         Self {
-            serial: "RMVPSIM0001".into(),
-            interface: "127.0.0.1".into(),
+            serial: None,
+            interface: "lo".into(),
             mesh: None,
             views: 6,
             spp: 4,
@@ -263,34 +268,6 @@ impl SimulatedScene {
     }
 }
 
-/// The fake camera's pointer, shared by the streaming and turntable threads.
-struct FakeCameraPtr(*mut ffi::ArvFakeCamera);
-// SAFETY: the fake camera's registers are plain memory words guarded by aravis; both threads
-// only read and write aligned registers, and the pointer outlives them (see `Drop`).
-unsafe impl Send for FakeCameraPtr {}
-unsafe impl Sync for FakeCameraPtr {}
-
-impl FakeCameraPtr {
-    fn read(&self, address: u32) -> u32 {
-        let mut value = 0;
-        // SAFETY: valid camera, address inside its memory.
-        unsafe { ffi::arv_fake_camera_read_register(self.0, address, &mut value) };
-        value
-    }
-
-    fn write(&self, address: u32, value: u32) {
-        // SAFETY: as above.
-        unsafe { ffi::arv_fake_camera_write_register(self.0, address, value) };
-    }
-
-    fn write_bytes(&self, address: u32, bytes: &[u8]) {
-        let mut bytes = bytes.to_vec();
-        // SAFETY: the address and length come from the description, inside the fake camera's
-        // memory (aravis refuses writes past it).
-        unsafe { ffi::arv_fake_camera_write_memory(self.0, address, bytes.len() as u32, bytes.as_mut_ptr().cast()) };
-    }
-}
-
 /// What a frame is exposed under: the pose, exposure (us), gain (dB, as bits), bits per pixel
 /// and whether the lens is capped.
 type FrameKey = (usize, u32, u32, u32, bool);
@@ -315,7 +292,7 @@ struct ExposureCache {
 
 /// State shared by aravis's streaming thread (the fill callback) and the turntable thread.
 struct Shared {
-    camera: FakeCameraPtr,
+    camera: Arc<Registers>,
     scene: SimulatedScene,
     poses: Mutex<Vec<Option<Arc<Stokes>>>>,
     exposure: Mutex<ExposureCache>,
@@ -565,11 +542,11 @@ impl Description {
     }
 
     /// A real camera's description ([`served`]), offering the formats of `config` it lists.
-    fn served(path: &std::path::Path, config: &SimulatorOptions) -> Result<Self> {
+    fn served(path: &std::path::Path, config: &SimulatorOptions, serial: &str) -> Result<Self> {
         let streamable: Vec<&str> = config.pixel_formats.iter().map(String::as_str).collect();
         let served = served::ServedDescription::load(path, &streamable, RIG_XML)?;
         let firmware = firmware::Firmware::flir(&served).map_err(|e| Error::in_file(path, e.to_string()))?;
-        let registers = firmware::flir_defaults(&served, served.pixel_formats[0].1, &config.serial, &config.left);
+        let registers = firmware::flir_defaults(&served, served.pixel_formats[0].1, serial, &config.left);
         Ok(Self { xml: served.xml.clone(), formats: served.pixel_formats.clone(), registers, firmware })
     }
 }
@@ -581,12 +558,16 @@ fn black_level_fraction() -> f64 {
 
 /// A running simulated camera; it stops when dropped.
 pub struct SimulatedCamera {
-    gv: *mut ffi::ArvGvFakeCamera,
+    /// The fake camera's registers; released in `Drop`, after every thread using them.
+    registers: Arc<Registers>,
+    peer: Option<gige::Peer>,
     shared: Arc<Shared>,
     turntable: Option<JoinHandle<()>>,
     firmware: Option<JoinHandle<()>>,
-    /// Serial number to open it by.
+    /// Serial number it reports.
     pub serial: String,
+    /// Address it answers on: what to open it by (serials need not be unique on a host).
+    pub address: std::net::Ipv4Addr,
 }
 
 impl SimulatedCamera {
@@ -600,9 +581,15 @@ impl SimulatedCamera {
                 config.pixel_formats
             )));
         }
+        let endpoint = gige::Endpoint::bind(&config.interface)?;
+        let address = endpoint.address;
+        let serial = config.serial.clone().unwrap_or_else(|| {
+            let [_, _, high, low] = address.octets();
+            format!("RMVPSIM{:04}", u32::from(high) * 256 + u32::from(low))
+        });
         let description = match &config.description {
             None => Description::own(config),
-            Some(path) => Description::served(path, config)?,
+            Some(path) => Description::served(path, config, &serial)?,
         };
         let xml = tempfile::Builder::new()
             .prefix("rmvp-simulated-camera")
@@ -613,31 +600,14 @@ impl SimulatedCamera {
 
         let scene = SimulatedScene::new(config)?;
         let n = scene.cameras.len();
-        let c_interface =
-            CString::new(config.interface.as_str()).map_err(|_| Error::Unsupported("interface".into()))?;
-        let c_serial = CString::new(config.serial.as_str()).map_err(|_| Error::Unsupported("serial".into()))?;
+        let c_serial = CString::new(serial.as_str()).map_err(|_| Error::Unsupported("serial".into()))?;
         let c_xml = CString::new(xml.path().to_string_lossy().as_bytes()).expect("no NUL in a temp path");
-        // SAFETY: valid C strings; aravis copies them.
-        let gv = unsafe { ffi::arv_gv_fake_camera_new_full(c_interface.as_ptr(), c_serial.as_ptr(), c_xml.as_ptr()) };
-        // SAFETY: `gv` checked for null before use.
-        if gv.is_null() || unsafe { ffi::arv_gv_fake_camera_is_running(gv) } == 0 {
-            return Err(Error::camera(
-                format!("simulated camera on {}", config.interface),
-                "could not open the GigE Vision ports (is another simulated camera running there?)",
-            ));
+        // SAFETY: valid C strings; aravis copies them (and reads the XML now).
+        let fake = unsafe { ffi::arv_fake_camera_new_full(c_serial.as_ptr(), c_xml.as_ptr()) };
+        if fake.is_null() {
+            return Err(Error::camera(format!("simulated camera {serial}"), "aravis could not make its registers"));
         }
-        if config.lost_packet_ratio > 0.0 {
-            // SAFETY: `gv` is a valid GObject; the property is aravis's GigE fake camera's own.
-            let object: aravis::glib::Object =
-                unsafe { aravis::glib::translate::from_glib_none(gv.cast::<aravis::glib::gobject_ffi::GObject>()) };
-            aravis::glib::prelude::ObjectExt::set_property(
-                &object,
-                "gvsp-lost-ratio",
-                config.lost_packet_ratio.clamp(0.0, 1.0),
-            );
-        }
-        // SAFETY: `gv` is valid; the fake camera belongs to it.
-        let camera = FakeCameraPtr(unsafe { ffi::arv_gv_fake_camera_get_fake_camera(gv) });
+        let camera = Arc::new(Registers(fake));
         for (address, value) in [
             (register::SENSOR_WIDTH, SENSOR_WIDTH as u32),
             (register::SENSOR_HEIGHT, SENSOR_HEIGHT as u32),
@@ -653,12 +623,20 @@ impl SimulatedCamera {
             camera.write(address, value);
         }
         for (address, bytes) in &description.registers {
-            camera.write_bytes(*address, bytes);
+            camera.write_memory(*address, bytes);
         }
         description.firmware.start_as(&camera, &config.left);
 
+        let renderer = match background_pool() {
+            Ok(pool) => pool,
+            Err(e) => {
+                // SAFETY: the one reference, used by nothing yet.
+                unsafe { aravis::glib::gobject_ffi::g_object_unref(fake.cast()) };
+                return Err(e);
+            }
+        };
         let shared = Arc::new(Shared {
-            camera,
+            camera: camera.clone(),
             scene,
             poses: Mutex::new(vec![None; n]),
             exposure: Mutex::default(),
@@ -666,19 +644,15 @@ impl SimulatedCamera {
             noise: config.noise,
             seed: config.seed,
             stop: AtomicBool::new(false),
-            renderer: background_pool()?,
+            renderer,
             firmware: description.firmware,
             formats: description.formats,
         });
         shared.ensure_rendered(0);
-        // SAFETY: `shared` lives in the returned value, which stops the camera (and with it
-        // the callbacks) before releasing it.
+        // SAFETY: `shared` lives in the returned value, which stops the peer (and with it the
+        // callbacks) before releasing it.
         unsafe {
-            ffi::arv_fake_camera_set_fill_pattern(
-                shared.camera.0,
-                Some(fill_frame),
-                Arc::as_ptr(&shared) as *mut c_void,
-            );
+            ffi::arv_fake_camera_set_fill_pattern(fake, Some(fill_frame), Arc::as_ptr(&shared) as *mut c_void);
         }
         let worker = shared.clone();
         let turntable = std::thread::Builder::new()
@@ -691,7 +665,17 @@ impl SimulatedCamera {
             .name("simulated firmware".into())
             .spawn(move || worker.run_firmware())
             .expect("spawn a thread");
-        Ok(Self { gv, shared, turntable: Some(turntable), firmware: Some(firmware), serial: config.serial.clone() })
+        let camera_registers = camera.clone();
+        let peer = gige::Peer::start(endpoint, camera, config.lost_packet_ratio);
+        Ok(Self {
+            registers: camera_registers,
+            peer: Some(peer),
+            shared,
+            turntable: Some(turntable),
+            firmware: Some(firmware),
+            serial,
+            address,
+        })
     }
 
     /// Number of turntable poses.
@@ -714,12 +698,13 @@ impl SimulatedCamera {
 
 impl Drop for SimulatedCamera {
     fn drop(&mut self) {
+        // The peer first: no frame is filled after it stops.
+        drop(self.peer.take());
         self.shared.stop.store(true, Ordering::Relaxed);
         for thread in [self.turntable.take(), self.firmware.take()].into_iter().flatten() {
             let _ = thread.join();
         }
-        // SAFETY: we own the one reference; this stops aravis's threads (no callback runs
-        // after it) and frees the camera; `shared` is released after.
-        unsafe { aravis::glib::gobject_ffi::g_object_unref(self.gv.cast()) };
+        // SAFETY: every thread using the fake camera has stopped; this is its one reference.
+        unsafe { aravis::glib::gobject_ffi::g_object_unref(self.registers.0.cast()) };
     }
 }

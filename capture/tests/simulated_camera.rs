@@ -1,8 +1,8 @@
-//! The camera client against the simulated GenICam camera (aravis GigE Vision fake camera on
-//! loopback with our XML): feature round trips, pixel-format negotiation, and frames in every
+//! The camera client against the simulated GenICam camera (GigE Vision on a loopback address of
+//! its own, our XML over aravis's fake-camera registers): feature round trips, pixel-format negotiation, and frames in every
 //! streamed format decoding to exactly what the sensor model makes of the rendered pose.
 
-use rmvp_capture::camera::{CameraDevice, CameraOptions, Grab};
+use rmvp_capture::camera::{CameraDevice, CameraOptions, Control, Grab};
 use rmvp_capture::simulator::{
     LeftState, SimulatedCamera, SimulatedScene, SimulatorOptions, SENSOR_HEIGHT, SENSOR_WIDTH,
 };
@@ -10,11 +10,13 @@ use rmvp_capture::RawFrame;
 use std::sync::Mutex;
 use std::time::Duration;
 
-/// One simulated camera per address: tests take turns.
+/// One simulated camera at a time: each renders and streams at full speed on the machine's
+/// cores, and a frame that waits behind another test's is a frame timing out.
 static LOOPBACK: Mutex<()> = Mutex::new(());
 
 fn config(serial: &str, formats: &[&str]) -> SimulatorOptions {
-    let mut config = SimulatorOptions { serial: serial.into(), views: 2, noise: false, ..SimulatorOptions::default() };
+    let mut config =
+        SimulatorOptions { serial: Some(serial.into()), views: 2, noise: false, ..SimulatorOptions::default() };
     if !formats.is_empty() {
         config.pixel_formats = formats.iter().map(|s| s.to_string()).collect();
     }
@@ -35,7 +37,7 @@ fn next_frame(camera: &mut CameraDevice) -> Vec<u8> {
 fn features_round_trip() {
     let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
     let sim = SimulatedCamera::start(&config("RMVPFEAT01", &[])).unwrap();
-    let camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+    let camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
     let id = camera.identity();
     assert_eq!(id.serial, "RMVPFEAT01");
     assert_eq!(id.model, "Simulated BFS-U3-51S5PC-C");
@@ -75,7 +77,7 @@ fn every_streamed_format_decodes_to_the_sensor_model() {
     let config = config("RMVPFMT01", &formats);
     let sim = SimulatedCamera::start(&config).unwrap();
     let truth = SimulatedScene::new(&config).unwrap().render(0);
-    let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+    let mut camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
     let settings = CameraOptions { exposure_us: 15_000.0, gain_db: 3.0, ..CameraOptions::default() };
     for name in formats {
         let format = camera.configure(&CameraOptions { pixel_format: Some(name.into()), ..settings.clone() }).unwrap();
@@ -94,7 +96,7 @@ fn every_streamed_format_decodes_to_the_sensor_model() {
 fn negotiation_falls_back_to_bayer_names() {
     let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
     let sim = SimulatedCamera::start(&config("RMVPNEG01", &["BayerRG8", "BayerRG16"])).unwrap();
-    let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+    let mut camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
     let format = camera.configure(&CameraOptions::default()).unwrap();
     assert_eq!(format.name(), "BayerRG16");
     assert_eq!(camera.feature("ExposureAuto").unwrap(), "Off");
@@ -123,12 +125,12 @@ fn the_sensor_noise_depends_on_the_frames_taken_at_a_setting_not_on_the_stream_b
     let noisy = |serial: &str| SimulatorOptions { noise: true, ..config(serial, &[]) };
     let direct = {
         let sim = SimulatedCamera::start(&noisy("RMVPNOISE01")).unwrap();
-        let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+        let mut camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
         burst(&mut camera, 15_000.0, 2)
     };
     let after_another_setting = {
         let sim = SimulatedCamera::start(&noisy("RMVPNOISE02")).unwrap();
-        let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+        let mut camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
         burst(&mut camera, 8_000.0, 3);
         burst(&mut camera, 15_000.0, 2)
     };
@@ -140,7 +142,7 @@ fn the_sensor_noise_depends_on_the_frames_taken_at_a_setting_not_on_the_stream_b
 /// `configure`.
 fn configured_frame(serial: &str, left: LeftState) -> Result<(RawFrame, CameraDevice, SimulatedCamera), String> {
     let sim = SimulatedCamera::start(&SimulatorOptions { left, ..config(serial, &[]) }).unwrap();
-    let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+    let mut camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
     let format = camera.configure(&CameraOptions::default()).map_err(|e| e.to_string())?;
     camera.start().unwrap();
     let bytes = next_frame(&mut camera);
@@ -195,7 +197,7 @@ fn a_mirrored_readout_that_is_locked_is_refused_by_name() {
 fn the_frame_rate_is_set_after_the_exposure_that_bounds_it_and_read_back() {
     let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
     let sim = SimulatedCamera::start(&config("RMVPRATE01", &[])).unwrap();
-    let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+    let mut camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
     // Left enabled at 70 frames/s by another program: an exposure of 20 ms still goes through.
     camera.set_feature("AcquisitionFrameRateEnable", "true").unwrap();
     camera.set_float("AcquisitionFrameRate", 70.0).unwrap();
@@ -228,10 +230,20 @@ fn real_flir_descriptions_are_served_and_driven_as_the_camera() {
         let left = LeftState { gamma: true, reverse_x: true, ..LeftState::default() };
         let config = SimulatorOptions { description: Some(path.clone()), left, ..config(&serial, &[]) };
         let sim = SimulatedCamera::start(&config).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-        let mut camera = CameraDevice::open(Some(&sim.serial)).unwrap();
+        let mut camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
         eprintln!("{}: {:?}, formats {:?}", path.display(), camera.identity(), camera.offered_pixel_formats().unwrap());
         assert_eq!(camera.identity().serial, serial);
-        let format = camera.configure(&CameraOptions::default()).unwrap();
+        // The older firmware's description has no polarized formats and names a plain mono
+        // Blackfly S: refused, saying why, until the sensor is declared polarized (the
+        // simulator stands a polarized one behind it).
+        let offered = camera.offered_pixel_formats().unwrap();
+        let polarized_sensor = !offered.iter().any(|f| f.contains("Polarized"));
+        if polarized_sensor {
+            let err = camera.configure(&CameraOptions::default()).unwrap_err().to_string();
+            assert!(err.contains("has no polarizers") && err.contains("BFS_U3_51S5"), "{}: {err}", path.display());
+        }
+        let declared = CameraOptions { polarized_sensor, ..CameraOptions::default() };
+        let format = camera.configure(&declared).unwrap();
         for (feature, value) in [("GammaEnable", "false"), ("ReverseX", "false"), ("ExposureAuto", "Off")] {
             assert_eq!(camera.feature(feature).unwrap(), value, "{}: {feature}", path.display());
         }
@@ -253,7 +265,7 @@ fn real_flir_descriptions_are_served_and_driven_as_the_camera() {
         // The frame rate's maximum follows the exposure (the firmware updates it within a few
         // milliseconds of a new exposure): 50 frames/s at 20 ms.
         std::thread::sleep(Duration::from_millis(50));
-        let rate = |frame_rate| CameraOptions { frame_rate: Some(frame_rate), ..CameraOptions::default() };
+        let rate = |frame_rate| CameraOptions { frame_rate: Some(frame_rate), ..declared.clone() };
         let err = camera.configure(&rate(60.0)).unwrap_err().to_string();
         assert!(err.contains("at most 50.000"), "{}: {err}", path.display());
         camera.configure(&rate(30.0)).unwrap();
@@ -261,4 +273,46 @@ fn real_flir_descriptions_are_served_and_driven_as_the_camera() {
         let resulting = camera.float("AcquisitionResultingFrameRate").unwrap();
         assert!((resulting - 30.0).abs() < 0.01, "{}: {resulting}", path.display());
     }
+}
+
+#[test]
+fn a_camera_another_client_controls_is_refused_naming_it_and_free_once_let_go() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let sim = SimulatedCamera::start(&config("RMVPCCP01", &[])).unwrap();
+    let address = sim.address.to_string();
+    let holder = CameraDevice::open(Some(&address)).unwrap();
+    let err = CameraDevice::open(Some(&address)).map(|_| ()).unwrap_err().to_string();
+    assert!(err.contains("RMVPCCP01") && err.contains("controlled by another application at 127.0.0.1:"), "{err}");
+    // Read-only access still works, and says who holds it.
+    let (inspected, control) = CameraDevice::open_to_inspect(Some(&address)).unwrap();
+    assert!(matches!(control, Control::Elsewhere(Some(a)) if a.ip().is_loopback() && a.port() != 0), "{control:?}");
+    assert_eq!(inspected.identity().serial, "RMVPCCP01");
+    drop(inspected);
+    drop(holder);
+    CameraDevice::open(Some(&address)).unwrap();
+}
+
+#[test]
+fn simulated_cameras_started_together_each_answer_on_an_address_of_their_own() {
+    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    // The same serial on purpose (two suites start the same tests): the addresses tell them apart.
+    let cameras: Vec<SimulatedCamera> = std::thread::scope(|scope| {
+        let starts: Vec<_> =
+            (0..3).map(|_| scope.spawn(|| SimulatedCamera::start(&config("RMVPTWIN01", &[])).unwrap())).collect();
+        starts.into_iter().map(|s| s.join().unwrap()).collect()
+    });
+    let mut addresses: Vec<_> = cameras.iter().map(|c| c.address).collect();
+    addresses.sort();
+    addresses.dedup();
+    assert_eq!(addresses.len(), 3, "{addresses:?}");
+    let opened: Vec<CameraDevice> =
+        cameras.iter().map(|c| CameraDevice::open(Some(&c.address.to_string())).unwrap()).collect();
+    for (camera, sim) in opened.iter().zip(&cameras) {
+        assert_eq!(camera.integer("TurntablePositions").unwrap() as usize, sim.views());
+    }
+    // Without a serial each takes one of its address.
+    let own = SimulatedCamera::start(&SimulatorOptions { serial: None, ..config("", &[]) }).unwrap();
+    let [_, _, high, low] = own.address.octets();
+    assert_eq!(own.serial, format!("RMVPSIM{:04}", u32::from(high) * 256 + u32::from(low)));
+    assert_eq!(CameraDevice::open(Some(&own.address.to_string())).unwrap().identity().serial, own.serial);
 }

@@ -117,6 +117,10 @@ pub struct CameraOptions {
     pub frame_rate: Option<f64>,
     /// Trigger of each frame.
     pub trigger: TriggerSource,
+    /// The user declared the sensor polarized (`--polarized-sensor`): captured although the
+    /// camera offers no polarized format and its model is not a known polarized one.
+    #[serde(default)]
+    pub polarized_sensor: bool,
 }
 
 impl Default for CameraOptions {
@@ -127,6 +131,7 @@ impl Default for CameraOptions {
             gain_db: 0.0,
             frame_rate: None,
             trigger: TriggerSource::FreeRun,
+            polarized_sensor: false,
         }
     }
 }

@@ -300,7 +300,7 @@ fn remove_previous_demo(out: &Path) -> Result<()> {
 /// Capture the simulated camera's turntable views into `dir`, as `rmvp capture --simulated
 /// --dark 4` would.
 fn capture_session(simulator: &SimulatedCamera, dir: &Path, progress: bool) -> Result<SessionReport> {
-    let mut camera = CameraDevice::open(Some(&simulator.serial))?;
+    let mut camera = CameraDevice::open(Some(&simulator.address.to_string()))?;
     let options = SessionOptions {
         object: DEMO_OBJECT.into(),
         views: DEMO_VIEWS,

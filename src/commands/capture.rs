@@ -4,7 +4,8 @@
 use super::board::BoardArgs;
 use anyhow::{Context, Result};
 use rmvp_calib::lab::LabOptions;
-use rmvp_capture::camera::{describe, list_devices, CameraDevice, CameraOptions};
+use rmvp_capture::camera::polarizers::polarizer_evidence;
+use rmvp_capture::camera::{controlled_elsewhere, describe, list_devices, CameraDevice, CameraOptions, Control};
 use rmvp_capture::preview::{serve, Preview};
 use rmvp_capture::session::positioning::Positioning;
 use rmvp_capture::session::{capture, check_session_folder, SessionOptions};
@@ -30,9 +31,14 @@ pub struct Args {
     /// Camera by serial number, IP address or aravis id (default: the first camera found).
     #[arg(long, conflicts_with = "simulated")]
     pub camera: Option<String>,
-    /// Use a simulated camera (GigE Vision on 127.0.0.1, the built-in object on a turntable).
+    /// Use a simulated camera of its own (GigE Vision on the first free loopback address, the
+    /// built-in object on a turntable); any number of them run side by side.
     #[arg(long)]
     pub simulated: bool,
+    /// The camera's sensor has on-chip polarizers though it offers no polarized pixel format and
+    /// its model is not one of FLIR's polarized ones (without it such a camera is refused).
+    #[arg(long)]
+    pub polarized_sensor: bool,
     /// Exposure time in microseconds.
     #[arg(long, default_value_t = SessionOptions::default().camera.exposure_us)]
     pub exposure: f64,
@@ -94,12 +100,13 @@ pub fn run(args: Args) -> Result<()> {
             description: args.description.clone(),
             ..SimulatorOptions::default()
         };
-        eprintln!("starting the simulated camera {} (rendering its first view)", config.serial);
-        Some(SimulatedCamera::start(&config)?)
+        let camera = SimulatedCamera::start(&config)?;
+        eprintln!("started the simulated camera {} on {}", camera.serial, camera.address);
+        Some(camera)
     } else {
         None
     };
-    let selector = simulator.as_ref().map(|s| s.serial.clone()).or(args.camera.clone());
+    let selector = simulator.as_ref().map(|s| s.address.to_string()).or(args.camera.clone());
     let mut camera = CameraDevice::open(selector.as_deref())?;
     let id = camera.identity();
     eprintln!("camera: {} {} serial {} firmware {} ({})", id.vendor, id.model, id.serial, id.firmware, id.protocol);
@@ -125,6 +132,7 @@ pub fn run(args: Args) -> Result<()> {
             exposure_us: args.exposure,
             gain_db: args.gain,
             frame_rate: args.frame_rate,
+            polarized_sensor: args.polarized_sensor,
             ..CameraOptions::default()
         },
         exposures_us: if args.hdr.is_empty() { vec![args.exposure] } else { args.hdr.clone() },
@@ -219,10 +227,12 @@ impl SetupArgs {
 /// Arguments of `rmvp simulate-camera`.
 #[derive(clap::Args, Clone)]
 pub struct SimulateCameraArgs {
-    /// Serial number to answer to.
-    #[arg(long, default_value_t = SimulatorOptions::default().serial)]
-    pub serial: String,
-    /// Network interface or IPv4 address to answer on.
+    /// Serial number to answer to (default: RMVPSIM and four digits of its address, e.g.
+    /// RMVPSIM0002 on 127.0.0.2).
+    #[arg(long)]
+    pub serial: Option<String>,
+    /// Where to answer: lo (the first loopback address no other camera holds), an IPv4
+    /// address, or a network interface's name.
     #[arg(long, default_value_t = SimulatorOptions::default().interface)]
     pub interface: String,
     /// Turntable poses.
@@ -311,7 +321,7 @@ pub fn simulate_camera(args: SimulateCameraArgs) -> Result<()> {
     eprintln!(
         "simulated camera {} ready on {} (GigE Vision), {} turntable poses; stop with Ctrl-C",
         camera.serial,
-        config.interface,
+        camera.address,
         camera.views()
     );
     loop {
@@ -327,8 +337,10 @@ pub fn cameras() -> Result<()> {
     }
     for device in devices {
         println!("{} [{} at {}]", device.id, device.protocol, device.address);
-        let camera = match CameraDevice::open(Some(&device.id)) {
-            Ok(camera) => camera,
+        // An address names one GigE Vision camera where ids may repeat (simulated cameras).
+        let selector = if device.protocol == "GigEVision" { &device.address } else { &device.id };
+        let (camera, control) = match CameraDevice::open_to_inspect(Some(selector)) {
+            Ok(opened) => opened,
             Err(e) => {
                 println!("  cannot open: {e}");
                 continue;
@@ -336,6 +348,10 @@ pub fn cameras() -> Result<()> {
         };
         let id = camera.identity();
         println!("  {} {}, serial {}, firmware {}", id.vendor, id.model, id.serial, id.firmware);
+        match control {
+            Control::Ours => println!("  control: free"),
+            Control::Elsewhere(holder) => println!("  control: {}", controlled_elsewhere(holder)),
+        }
         let offered = camera.offered_pixel_formats().unwrap_or_default();
         let readable: Vec<&str> =
             offered.iter().filter(|f| f.parse::<PixelFormat>().is_ok()).map(String::as_str).collect();
@@ -343,6 +359,13 @@ pub fn cameras() -> Result<()> {
             "  pixel formats rmvp reads: {}",
             if readable.is_empty() { "none".into() } else { readable.join(", ") }
         );
+        match polarizer_evidence(&id.model, &offered, false) {
+            Ok(evidence) => println!("  polarizers: yes ({evidence})"),
+            Err(_) => println!(
+                "  polarizers: none seen (no polarized pixel format, not one of FLIR's polarized models): \
+                 captured only with --polarized-sensor"
+            ),
+        }
         for feature in rmvp_capture::session::RECORDED_FEATURES {
             let state = if !camera.is_available(feature) {
                 "not available".to_string()

@@ -41,6 +41,11 @@ pub struct Args {
     /// Colour-correction matrix, nine numbers row by row: "m00,m01,...,m22".
     #[arg(long, value_parser = super::parse_numbers::<9>)]
     ccm: Option<[f32; 9]>,
+    /// The frames are a polarization sensor's though their format names a plain one (BayerRG*,
+    /// Mono*: FLIR's polarized models offer their bytes under those names too); without it such
+    /// frames are refused.
+    #[arg(long)]
+    polarized_sensor: bool,
 }
 
 /// A bare buffer's pixel format when none is given: the colour camera's streaming default.
@@ -63,6 +68,18 @@ pub fn run(args: Args) -> Result<()> {
         ),
         (None, None) => DEFAULT_BUFFER_FORMAT,
     };
+    if !format.family.names_polarizers() && !args.polarized_sensor {
+        bail!(
+            "--pixel-format {}: a plain {} sensor's format: its 2x2 cells are {}, not polarizers, and Stokes, AoP \
+             and DoP from them would be of light no polarizer saw. A polarization camera's frames are \
+             BayerRGPolarized* (colour IMX250MYR) or Polarized* (mono IMX250MZR); pass --polarized-sensor if \
+             these come from one that names its format {}*",
+            format.name(),
+            if format.family.layout() == SensorLayout::MonoPolarized { "mono" } else { "Bayer" },
+            if format.family.layout() == SensorLayout::MonoPolarized { "plain pixels" } else { "colour filters" },
+            format.name().trim_end_matches(|c: char| c.is_ascii_digit() || c == 'p'),
+        );
+    }
     let layout = format.family.layout();
     if let (Some(method), SensorLayout::MonoPolarized) = (args.method, layout) {
         bail!(

@@ -2,8 +2,9 @@
 //! the frames depend on (rmvp's own description, or a real camera's served through
 //! [`super::served`]), what they hold when it starts, and what it updates while it runs.
 
+use super::gige::Registers;
 use super::served::{Register, ServedDescription};
-use super::{register, FakeCameraPtr, LeftState, Readout, ADC_BITS, LINK_THROUGHPUT_LIMIT};
+use super::{register, LeftState, Readout, ADC_BITS, LINK_THROUGHPUT_LIMIT};
 use crate::{Error, Result};
 
 /// How a setting is stored in its register.
@@ -33,7 +34,7 @@ impl Field {
         Self { address: register.address, encoding, little_endian: register.little_endian, scale }
     }
 
-    fn word(&self, camera: &FakeCameraPtr) -> u32 {
+    fn word(&self, camera: &Registers) -> u32 {
         let bytes = camera.read(self.address).to_be_bytes();
         if self.little_endian {
             u32::from_le_bytes(bytes)
@@ -42,7 +43,7 @@ impl Field {
         }
     }
 
-    fn read(&self, camera: &FakeCameraPtr) -> f64 {
+    fn read(&self, camera: &Registers) -> f64 {
         let word = self.word(camera);
         let stored = match self.encoding {
             Encoding::Unsigned => f64::from(word),
@@ -52,7 +53,7 @@ impl Field {
         stored * self.scale
     }
 
-    fn write(&self, camera: &FakeCameraPtr, value: f64) {
+    fn write(&self, camera: &Registers, value: f64) {
         let stored = value / self.scale;
         let word = match self.encoding {
             Encoding::Unsigned => stored.round().max(0.0) as u32,
@@ -158,17 +159,17 @@ impl Firmware {
     }
 
     /// Exposure time, microseconds.
-    pub(super) fn exposure_us(&self, camera: &FakeCameraPtr) -> u32 {
+    pub(super) fn exposure_us(&self, camera: &Registers) -> u32 {
         self.settings.exposure_us.read(camera).round().max(0.0) as u32
     }
 
     /// Analog gain, dB.
-    pub(super) fn gain_db(&self, camera: &FakeCameraPtr) -> f32 {
+    pub(super) fn gain_db(&self, camera: &Registers) -> f32 {
         self.settings.gain_db.read(camera) as f32
     }
 
     /// The readout settings the frames go through.
-    pub(super) fn readout(&self, camera: &FakeCameraPtr) -> Readout {
+    pub(super) fn readout(&self, camera: &Registers) -> Readout {
         let s = &self.settings;
         let on = |f: &Field| f.read(camera) != 0.0;
         Readout {
@@ -182,13 +183,13 @@ impl Firmware {
     }
 
     /// The sensor's temperature, degrees C.
-    pub(super) fn set_temperature(&self, camera: &FakeCameraPtr, celsius: f64) {
+    pub(super) fn set_temperature(&self, camera: &Registers, celsius: f64) {
         self.settings.temperature_c.write(camera, celsius);
     }
 
     /// The state the camera starts in: what another program left (`left`), the readout
     /// settings of a camera fresh from its default user set otherwise.
-    pub(super) fn start_as(&self, camera: &FakeCameraPtr, left: &LeftState) {
+    pub(super) fn start_as(&self, camera: &Registers, left: &LeftState) {
         let s = &self.settings;
         s.exposure_us.write(camera, super::REFERENCE_EXPOSURE_US);
         s.gain_db.write(camera, 0.0);
@@ -204,7 +205,7 @@ impl Firmware {
     /// What the firmware keeps current while it runs: a stop command, the payload of a frame,
     /// the shortest frame time the exposure allows, the frame time it runs at (and streams at)
     /// and the link's load.
-    pub(super) fn tick(&self, camera: &FakeCameraPtr, payload_bytes: u64) {
+    pub(super) fn tick(&self, camera: &Registers, payload_bytes: u64) {
         let Some(t) = &self.timing else { return };
         t.payload_size.write(camera, payload_bytes as f64);
         if t.stop.read(camera) != 0.0 {
