@@ -384,20 +384,24 @@ fn a_camera_left_with_gamma_and_a_mirrored_readout_is_put_right_and_its_state_re
 #[test]
 fn sessions_run_against_real_flir_descriptions_as_against_our_own() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/genicam");
-    let session = |serial: &str, camera_args: &[&str]| {
+    let session = |serial: &str, camera_args: &[&str], capture_args: &[&str]| {
         let rig = Rig::new(serial, 2, &[&["--noise-free", "--left-with", "gamma,reverse-x"], camera_args].concat());
-        let out = run(capture_command(&rig.camera, &rig.dir, &["--views", "2"]));
+        let out = run(capture_command(&rig.camera, &rig.dir, &[&["--views", "2"], capture_args].concat()));
         assert!(out.status.success(), "{camera_args:?}: {}", String::from_utf8_lossy(&out.stderr));
         let manifest = SessionManifest::read(&rig.dir).unwrap();
         manifest.verify(&rig.dir).unwrap();
         let stokes = std::fs::read(rig.dir.join("views/001/view_stokes.exr")).unwrap();
         (manifest, stokes)
     };
-    let (_, ours) = session("RMVPDESC00", &[]);
-    for (k, file) in ["FLIR-BFS-PGE-23S6C.xml", "PGR_BFS_U3_51S5M.xml"].iter().enumerate() {
+    let (_, ours) = session("RMVPDESC00", &[], &[]);
+    // The older firmware's description names a plain mono Blackfly S and no polarized format:
+    // the sensor behind it is declared polarized.
+    for (k, (file, capture_args)) in
+        [("FLIR-BFS-PGE-23S6C.xml", &[][..]), ("PGR_BFS_U3_51S5M.xml", &["--polarized-sensor"][..])].iter().enumerate()
+    {
         let description = root.join(file);
-        let (manifest, stokes) =
-            session(&format!("RMVPDESC0{}", k + 1), &["--description", description.to_str().unwrap()]);
+        let camera_args = ["--description", description.to_str().unwrap()];
+        let (manifest, stokes) = session(&format!("RMVPDESC0{}", k + 1), &camera_args, capture_args);
         assert!(manifest.complete, "{file}");
         assert!(manifest.camera.identity.model.starts_with("Simulated BFS_"), "{file}: {:?}", manifest.camera.identity);
         let features = &manifest.camera.features;
@@ -429,8 +433,102 @@ fn cameras_lists_what_each_camera_supports() {
         stdout.contains("pixel formats rmvp reads: BayerRG8") && stdout.contains("BayerRGPolarized12p"),
         "{stdout}"
     );
+    assert!(
+        stdout.contains("polarizers: yes (it offers BayerRGPolarized") && stdout.contains("control: free"),
+        "{stdout}"
+    );
     for line in ["GammaEnable", "ReverseX", "AdcBitDepth", "AcquisitionResultingFrameRate", "DeviceLinkThroughputLimit"]
     {
         assert!(stdout.lines().any(|l| l.trim_start().starts_with(line)), "{line}: {stdout}");
     }
+}
+
+#[test]
+fn a_camera_another_program_controls_is_refused_naming_it() {
+    let rig = Rig::new("RMVPHELD01", 2, &["--noise-free"]);
+    // The first session holds the camera while it waits for the operator.
+    let holder_dir = rig.dir.with_file_name("holder");
+    let mut holder = capture_command(&rig.camera, &holder_dir, &["--views", "2", "--mode", "interactive"])
+        .stdin(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(holder.stderr.take().unwrap()).lines();
+    while !lines.next().expect("the first session prompts for Enter").unwrap().contains("press Enter") {}
+    std::thread::spawn(move || lines.for_each(drop));
+
+    let out = run(capture_command(&rig.camera, &rig.dir, &["--views", "1"]));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("RMVPHELD01") && stderr.contains("controlled by another application at 127.0.0.1:"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("close it") && !stderr.contains("write_register"), "{stderr}");
+    assert!(!rig.dir.join("session.json").exists());
+    let listed = run({
+        let mut command = Command::new(env!("CARGO_BIN_EXE_rmvp"));
+        command.arg("cameras");
+        command
+    });
+    let stdout = String::from_utf8_lossy(&listed.stdout);
+    let listed_at = stdout.split(&format!("at {}]", rig.camera.address)).nth(1).expect("the camera is listed");
+    let entry: Vec<&str> = listed_at.lines().skip(1).take_while(|l| l.starts_with(' ')).collect();
+    assert!(
+        entry.iter().any(|l| l.contains("control: is controlled by another application at 127.0.0.1:")),
+        "{stdout}"
+    );
+
+    // Once the first session ends (the operator leaves), the camera is free.
+    drop(holder.stdin.take());
+    holder.wait().unwrap();
+    let out = run(capture_command(&rig.camera, &rig.dir, &["--views", "1"]));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+#[test]
+fn two_simulated_sessions_at_once_both_complete() {
+    let _turn = ONE_RIG.lock().unwrap_or_else(|e| e.into_inner());
+    let tmp = tempfile::tempdir().unwrap();
+    let dirs: Vec<PathBuf> = (0..2).map(|k| tmp.path().join(format!("session{k}"))).collect();
+    let sessions: Vec<Child> = dirs
+        .iter()
+        .map(|dir| {
+            Command::new(env!("CARGO_BIN_EXE_rmvp"))
+                .args(["capture", "--simulated", "--object", "spot", "--views", "1", "-o", dir.to_str().unwrap()])
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    let mut serials = Vec::new();
+    for (session, dir) in sessions.into_iter().zip(&dirs) {
+        let out = session.wait_with_output().unwrap();
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let manifest = SessionManifest::read(dir).unwrap();
+        assert!(manifest.complete);
+        manifest.verify(dir).unwrap();
+        serials.push(manifest.camera.identity.serial);
+    }
+    assert_ne!(serials[0], serials[1], "each session filmed its own camera");
+    assert!(serials.iter().all(|s| s.starts_with("RMVPSIM")), "{serials:?}");
+}
+
+#[test]
+fn a_camera_without_polarizers_is_refused_unless_declared() {
+    let description = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/genicam/FLIR-BFS-PGE-23S6C.xml");
+    // A colour Blackfly S whose firmware implements only the Bayer formats.
+    let camera_args = ["--noise-free", "--pixel-formats", "BayerRG8,BayerRG12p", "--description"];
+    let rig = Rig::new("RMVPPLAIN1", 1, &[&camera_args[..], &[description.to_str().unwrap()]].concat());
+    let out = run(capture_command(&rig.camera, &rig.dir, &["--views", "1"]));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    for part in ["has no polarizers", "BayerRG8, BayerRG12p", "BFS_PGE_23S6", "BFS-U3-51S5PC-C", "--polarized-sensor"] {
+        assert!(stderr.contains(part), "{part}: {stderr}");
+    }
+    assert!(!rig.dir.join("views").exists(), "nothing captured");
+    let out = run(capture_command(&rig.camera, &rig.dir, &["--views", "1", "--polarized-sensor"]));
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let manifest = SessionManifest::read(&rig.dir).unwrap();
+    assert!(manifest.settings.camera.polarized_sensor && manifest.camera.pixel_format == "BayerRG12p");
 }

@@ -202,6 +202,25 @@ fn demosaic_reports_a_truncated_frame_by_name() {
 }
 
 #[test]
+fn demosaic_refuses_a_plain_sensor_format_unless_the_sensor_is_declared_polarized() {
+    let tmp = tempfile::tempdir().unwrap();
+    let raw = tmp.path().join("frame.raw");
+    std::fs::write(&raw, (0..64u8).collect::<Vec<_>>()).unwrap();
+    let size = ["--width", "8", "--height", "8"];
+    for (format, cells) in [("BayerRG8", "colour filters"), ("Mono8", "plain pixels")] {
+        let out = tmp.path().join(format);
+        let err = fails(&[&["demosaic", s(&raw), "-o", s(&out), "--pixel-format", format][..], &size].concat());
+        assert!(err.contains(format) && err.contains(cells) && err.contains("--polarized-sensor"), "{err}");
+        assert!(!out.exists(), "{format}: nothing written");
+        let declared =
+            [&["demosaic", s(&raw), "-o", s(&out), "--pixel-format", format, "--polarized-sensor"][..], &size];
+        let done = common::rmvp(&declared.concat());
+        assert!(done.status.success(), "{format}: {}", String::from_utf8_lossy(&done.stderr));
+        assert!(out.join("frame_000.png").exists(), "{format}");
+    }
+}
+
+#[test]
 fn check_finds_the_fixtures_aop_in_our_frame_and_a_mirrored_copy_mirrored() {
     let tmp = tempfile::tempdir().unwrap();
     for name in ["spot_nersp", "bunny_nersp"] {
