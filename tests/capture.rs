@@ -331,7 +331,9 @@ fn the_operator_presses_enter_between_views_and_a_closed_stdin_stops_cleanly() {
 
 #[test]
 fn frames_lost_on_the_link_are_counted_and_grabbed_again() {
-    let rig = Rig::new("RMVPLOSS01", 2, &["--lost-packets", "0.00012", "--noise-free"]);
+    // 0.08 % of the packets: about one frame in two loses one (a 12-bit frame is about 840 packets
+    // of 9000 bytes), so the 18 or more frames of the session lose some.
+    let rig = Rig::new("RMVPLOSS01", 2, &["--lost-packets", "0.0008", "--noise-free"]);
     let dir = rig.dir.clone();
     let out = run(capture_command(&rig.camera, &dir, &["--views", "2", "--average", "8"]));
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -339,7 +341,7 @@ fn frames_lost_on_the_link_are_counted_and_grabbed_again() {
     let manifest = SessionManifest::read(&dir).unwrap();
     let dropped: usize = manifest.views.iter().map(|v| v.dropped_frames).sum();
     eprintln!("{dropped} frames dropped and grabbed again");
-    assert!(dropped > 0, "no frame was lost at a 0.012 % packet loss");
+    assert!(dropped > 0, "no frame was lost at a 0.08 % packet loss");
     assert!(stderr.contains(&format!("{dropped} dropped frames grabbed again")), "{stderr}");
     // Every kept frame is complete: noise-free frames of one pose are identical.
     let raw = dir.join("views/001/raw");

@@ -54,6 +54,10 @@ pub mod bootstrap {
     pub const PRIVILEGE_CONTROL: u32 = 1 << 1;
     /// Stream channel 0's destination port.
     pub const STREAM_CHANNEL_PORT: u32 = 0x0d00;
+    /// Stream channel 0's packet size (`SCPS`: the size in the low 16 bits).
+    pub const STREAM_CHANNEL_PACKET_SIZE: u32 = 0x0d04;
+    /// `SCPS`'s fire-test-packet bit.
+    pub const FIRE_TEST_PACKET: u32 = 1 << 31;
     /// Stream channel 0's destination address.
     pub const STREAM_CHANNEL_DESTINATION: u32 = 0x0d18;
 }
@@ -125,6 +129,22 @@ impl Endpoint {
     fn bind_at(address: Ipv4Addr) -> std::result::Result<Self, BindError> {
         let control = UdpSocket::bind((address, GVCP_PORT)).map_err(BindError::Control)?;
         let stream = UdpSocket::bind((address, 0)).map_err(BindError::Other)?;
+        // Never fragmented, as a camera's stream with SCPS's do-not-fragment flag: a packet
+        // larger than the path's MTU is refused, not split.
+        let discover: libc::c_int = libc::IP_PMTUDISC_DO;
+        // SAFETY: an open socket and an int option of the size given.
+        let set = unsafe {
+            libc::setsockopt(
+                stream.as_raw_fd(),
+                libc::IPPROTO_IP,
+                libc::IP_MTU_DISCOVER,
+                (&discover as *const libc::c_int).cast(),
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            )
+        };
+        if set != 0 {
+            return Err(BindError::Other(std::io::Error::last_os_error()));
+        }
         // Shared with every other camera on the host (and with aravis's own fake cameras, which
         // set the same options); without it the camera is still found by its address.
         let discovery = discovery_socket().ok();
@@ -357,9 +377,10 @@ impl Server {
     fn run(&mut self) {
         let mut buffer = vec![0u8; 2048];
         let mut stream: Option<Stream> = None;
+        // When the next frame is due: a deadline that stays put until it is reached.
+        let mut due_at: Option<Instant> = None;
         while !self.stop.load(Ordering::Relaxed) {
-            let next_frame = stream.as_ref().map(|_| self.next_frame_time());
-            let wait = next_frame.map_or(Duration::from_millis(100), |t| {
+            let wait = due_at.map_or(Duration::from_millis(100), |t| {
                 t.saturating_duration_since(Instant::now()).min(Duration::from_millis(100))
             });
             self.answer_control(&mut buffer, wait);
@@ -367,11 +388,11 @@ impl Server {
             // SAFETY: valid camera.
             let acquiring = unsafe { ffi::arv_fake_camera_get_acquisition_status(self.registers.0) } != 0;
             if privilege == 0 || !acquiring {
-                stream = None;
+                (stream, due_at) = (None, None);
                 continue;
             }
             let stream = stream.get_or_insert_with(|| Stream::new(&self.registers));
-            if next_frame.is_some_and(|t| Instant::now() < t) {
+            if due_at.is_some_and(|t| Instant::now() < t) {
                 continue;
             }
             // SAFETY: valid camera.
@@ -383,6 +404,7 @@ impl Server {
             if due {
                 self.send_frame(stream);
             }
+            due_at = Some(self.next_frame_time());
         }
     }
 
@@ -400,8 +422,10 @@ impl Server {
             [Some(&self.endpoint.control), self.endpoint.discovery.as_ref()].into_iter().flatten().collect();
         let mut fds: Vec<libc::pollfd> =
             sockets.iter().map(|s| libc::pollfd { fd: s.as_raw_fd(), events: libc::POLLIN, revents: 0 }).collect();
+        // Rounded up: a poll that ends before the deadline would spin until it.
+        let timeout_ms = wait.as_micros().div_ceil(1000) as i32;
         // SAFETY: `fds` holds open descriptors.
-        let ready = unsafe { libc::poll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, wait.as_millis() as i32) };
+        let ready = unsafe { libc::poll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, timeout_ms) };
         if ready <= 0 {
             return;
         }
@@ -502,6 +526,11 @@ impl Server {
             if status != status::SUCCESS {
                 return (status, (k as u32).to_be_bytes().to_vec());
             }
+            if address == bootstrap::STREAM_CHANNEL_PACKET_SIZE && value & bootstrap::FIRE_TEST_PACKET != 0 {
+                self.registers.write(address, value & !bootstrap::FIRE_TEST_PACKET);
+                self.send_test_packet(value & 0xffff);
+                continue;
+            }
             self.registers.write(address, value);
             if address == bootstrap::CONTROL_CHANNEL_PRIVILEGE {
                 if value & (bootstrap::PRIVILEGE_CONTROL | bootstrap::PRIVILEGE_EXCLUSIVE) == 0 {
@@ -514,6 +543,15 @@ impl Server {
             }
         }
         (status::SUCCESS, (count as u32).to_be_bytes().to_vec())
+    }
+
+    /// A test packet of `packet_size` bytes (IP and UDP headers included) to the stream's
+    /// destination; too large for the path, it is not sent (the stream socket does not
+    /// fragment), which is how a client finds the largest packet size that works.
+    fn send_test_packet(&self, packet_size: u32) {
+        let mut packet = vec![0u8; (packet_size as usize).saturating_sub(20 + 8).max(8)];
+        packet[4] = 4 << 4; // GVSP's test-packet format in the header's format field
+        let _ = self.endpoint.stream.send_to(&packet, Stream::destination(&self.registers));
     }
 
     /// The control channel is free again.
@@ -616,11 +654,16 @@ struct Stream {
 }
 
 impl Stream {
-    fn new(registers: &Registers) -> Self {
-        let destination = SocketAddrV4::new(
+    /// Where the stream channel sends.
+    fn destination(registers: &Registers) -> SocketAddrV4 {
+        SocketAddrV4::new(
             Ipv4Addr::from(registers.read(bootstrap::STREAM_CHANNEL_DESTINATION)),
             registers.read(bootstrap::STREAM_CHANNEL_PORT) as u16,
-        );
+        )
+    }
+
+    fn new(registers: &Registers) -> Self {
+        let destination = Self::destination(registers);
         // SAFETY: valid camera.
         let payload = unsafe { ffi::arv_fake_camera_get_payload(registers.0) };
         // SAFETY: a new buffer of `payload` bytes that aravis allocates; freed in `Drop`.
