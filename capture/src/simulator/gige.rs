@@ -501,7 +501,7 @@ impl Server {
         let mut values = Vec::with_capacity(4 * count);
         for k in 0..count {
             let address = command.word(k).expect("within the data");
-            if address % 4 != 0 {
+            if !address.is_multiple_of(4) {
                 return (status::BAD_ALIGNMENT, values);
             }
             if !inside(address, 4, MEMORY_SIZE) {
@@ -516,7 +516,7 @@ impl Server {
         let count = command.data.len() / 8;
         for k in 0..count {
             let (address, value) = (command.word(2 * k).expect("data"), command.word(2 * k + 1).expect("data"));
-            let status = if address % 4 != 0 {
+            let status = if !address.is_multiple_of(4) {
                 status::BAD_ALIGNMENT
             } else if !inside(address, 4, MEMORY_SIZE) {
                 status::INVALID_ADDRESS
