@@ -287,7 +287,19 @@ fn dataset_stage(root: &Path, lab: &Path, camera: &Path, truth: &SimulatedScene)
     }
     println!("  build in all                            {total:7.1} s");
     stage("`dataset build` in all", total);
-    let t = rmvp(&["dataset", "publish", s(&dataset), "-o", s(&release), "--archive", "tar"]);
+    let t = rmvp(&[
+        "dataset",
+        "publish",
+        s(&dataset),
+        "-o",
+        s(&release),
+        "--archive",
+        "tar",
+        "--license",
+        "CC-BY-4.0",
+        "--creator",
+        "Lab, Simulated; rmvp",
+    ]);
     println!("  publish (copy, contact sheets, SHA-256, tar) {t:7.1} s");
     stage("`dataset publish` (copy, contact sheets, SHA-256, tar)", t);
     let t = rmvp(&["dataset", "verify", s(&release)]);

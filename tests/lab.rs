@@ -221,7 +221,19 @@ fn a_lab_session_becomes_posed_masked_views() {
         aligned.alignment.transform.s, aligned.alignment.median_distance, aligned.mask_iou_mean, aligned.mask_iou_min.0
     );
     let release = tmp.path().join("release");
-    ok(&["dataset", "publish", s(&dataset), "-o", s(&release), "--archive", "tar"]);
+    ok(&[
+        "dataset",
+        "publish",
+        s(&dataset),
+        "-o",
+        s(&release),
+        "--archive",
+        "tar",
+        "--license",
+        "CC-BY-4.0",
+        "--creator",
+        "Lab, Simulated; rmvp",
+    ]);
     let verified = ok(&["dataset", "verify", s(&release)]);
     assert!(verified.contains("verified (1 object(s): lab; ") && verified.contains("24 views"), "{verified}");
     let datasheet = std::fs::read_to_string(release.join("README.md")).unwrap();

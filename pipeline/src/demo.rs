@@ -9,13 +9,17 @@
 //! 3. Poses and masks: the rig's cameras imported from that layout's `cameras.npz`
 //!    ([`rmvp_calib::poses::pose_session`]), masks from the object's mesh
 //!    ([`rmvp_calib::masks::make_masks`]).
-//! 4. Dataset: `rmvp dataset build` on the posed, masked session ([`build_dataset`]).
+//! 4. Dataset: `rmvp dataset build` on the posed, masked session ([`build_dataset`]),
+//!    published as a release (`release/`: card, Croissant, DataCite and Zenodo metadata,
+//!    checksums; [`crate::publish`]).
 //! 5. Report: the dataset's polarization against the rendered ground truth, as numbers
 //!    ([`DemoReport`], `report.json`) and pictures (`contact_sheet.png`).
 //! 6. Reconstruction: NeRSP (fast preset) on the dataset, evaluated against the true mesh and
 //!    normals.
 
 use crate::build::{build_dataset, BuildOptions, BuildRecord, TrainViews, DATASET_LAYOUTS};
+use crate::publish::metadata::{Creator, ReleaseInfo};
+use crate::publish::{publish, PublishOptions};
 use crate::report;
 use crate::simulate::NORMALIZATION_MARGIN;
 use crate::{Error, Result};
@@ -95,6 +99,26 @@ pub const TRUTH_FOLDER: &str = "simulated";
 pub const DATASET_FOLDER: &str = "dataset";
 /// The reconstruction's folder.
 pub const RECON_FOLDER: &str = "recon";
+/// The release's folder.
+pub const RELEASE_FOLDER: &str = "release";
+
+/// Who publishes the demo's release and under what licence: the data is rendered from Keenan
+/// Crane's public-domain "spot", so it is public domain too.
+pub fn demo_release_info() -> ReleaseInfo {
+    ReleaseInfo {
+        title: Some("rmvp demo: spot on the simulated turntable".into()),
+        license: Some("CC0-1.0".into()),
+        description: Some(
+            "The built-in example of rmvp: Keenan Crane's spot (public domain) on a simulated turntable, \
+             captured through the simulated BFS-U3-51S5PC-C polarization camera, posed, masked and built \
+             into a dataset with its ground truth."
+                .into(),
+        ),
+        publisher: Some("rmvp".into()),
+        creators: vec![Creator { name: "rmvp demo".into(), affiliation: None, orcid: None }],
+        ..ReleaseInfo::default()
+    }
+}
 
 /// The capture session the demo made.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -183,6 +207,9 @@ pub struct DemoReport {
     pub ground_truth: String,
     /// The dataset.
     pub dataset: DatasetSummary,
+    /// The dataset's release folder, relative to the output folder.
+    #[serde(default)]
+    pub release: String,
     /// The dataset's AoP against the rendered AoP, degrees (where DoP > [`AOP_MIN_DOP`](polarization::AOP_MIN_DOP)).
     pub aop_error_deg: ErrorQuantiles,
     /// The dataset's S0 against the rendered S0, relative (where S0 > [`S0_MIN`]).
@@ -235,7 +262,7 @@ pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result
         MaskOptions { method: MaskMethod::Mesh, mesh: Some(truth_dir.join(nersp::GT_MESH)), ..MaskOptions::default() };
     make_masks(&session, &masks, &session.join(MASKS_FOLDER))?;
 
-    announce("4/6 building the dataset from the posed, masked session (NeRSP and rmvp layouts)");
+    announce("4/6 building the dataset from the posed, masked session (NeRSP and rmvp layouts), publishing it");
     let dataset_dir = out.join(DATASET_FOLDER);
     let record = build_dataset(&BuildOptions {
         session: session.clone(),
@@ -243,6 +270,13 @@ pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result
         train: TrainViews::Count(DEMO_VIEWS),
         progress: options.progress,
         ..BuildOptions::default()
+    })?;
+    publish(&PublishOptions {
+        datasets: vec![dataset_dir.clone()],
+        output: out.join(RELEASE_FOLDER),
+        info: demo_release_info(),
+        archive: None,
+        progress: options.progress,
     })?;
     let dataset = read_scene(&dataset_dir.join(Layout::Nersp.name()))?;
 
@@ -268,6 +302,7 @@ pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result
         },
         ground_truth: TRUTH_FOLDER.into(),
         dataset: dataset_summary(&record),
+        release: RELEASE_FOLDER.into(),
         aop_error_deg: ErrorQuantiles::of(&comparison.aop_errors_deg),
         s0_rel_error: ErrorQuantiles::of(&comparison.s0_rel_errors),
         contact_sheet: CONTACT_SHEET.into(),
@@ -281,8 +316,8 @@ pub fn run_demo(options: &DemoOptions, announce: &mut dyn FnMut(&str)) -> Result
 }
 
 /// The files and folders a demo writes into its output folder.
-const DEMO_OUTPUTS: [&str; 6] =
-    [SESSION_FOLDER, TRUTH_FOLDER, DATASET_FOLDER, RECON_FOLDER, REPORT_FILE, CONTACT_SHEET];
+const DEMO_OUTPUTS: [&str; 7] =
+    [SESSION_FOLDER, TRUTH_FOLDER, DATASET_FOLDER, RELEASE_FOLDER, RECON_FOLDER, REPORT_FILE, CONTACT_SHEET];
 
 /// Remove what an earlier demo wrote into `out` (and nothing else), so that the demo runs again
 /// from the start: a capture session or a dataset build would refuse a folder that is there.
@@ -471,6 +506,7 @@ mod tests {
                 train: vec!["000".into(), "001".into()],
                 complete: true,
             },
+            release: RELEASE_FOLDER.into(),
             aop_error_deg: ErrorQuantiles { median: 2.6, p90: 7.5, pixels: 1234 },
             s0_rel_error: ErrorQuantiles { median: 0.01, p90: 0.03, pixels: 2345 },
             contact_sheet: CONTACT_SHEET.into(),

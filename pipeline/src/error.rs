@@ -99,6 +99,12 @@ pub enum Error {
         /// Each changed option: `name: recorded -> now`.
         changed: String,
     },
+    /// A release's metadata that is missing or malformed (what to give).
+    #[error("release metadata: {why}")]
+    ReleaseInfo {
+        /// What is wrong and what to give.
+        why: String,
+    },
     /// A dataset or release folder that is there already, or not as expected.
     #[error("{}: {why}", path.display())]
     Folder {

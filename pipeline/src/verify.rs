@@ -2,6 +2,7 @@
 //! file and what is wrong.
 //!
 //! - `SHA256SUMS`: every listed file present with its checksum, no file left unlisted;
+//! - `croissant.json` (where there is one): every file it lists present with its SHA-256;
 //! - per object: both layouts readable; every view posed, masked, with Stokes of the camera's
 //!   size; the NeRSP layout by the official loader's rules (one `image/` and one
 //!   `input_azimuth_maps/` file per `world_mat_i`, 0-based, 16-bit RGBA azimuth maps, float32
@@ -52,6 +53,7 @@ pub fn verify(release: &Path) -> Result<Verification> {
         Err(e) => return Err(Error::Verification { path: release.to_path_buf(), faults: vec![e.to_string()] }),
     };
     let mut names = BTreeSet::new();
+    let mut hashes = std::collections::BTreeMap::new();
     for (number, line) in listed.lines().enumerate() {
         let line_no = number + 1;
         let Some((hash, file)) =
@@ -69,7 +71,11 @@ pub fn verify(release: &Path) -> Result<Verification> {
             }
         };
         names.insert(file.to_string());
-        match sha256_file(&path) {
+        let actual = sha256_file(&path);
+        if let Ok((actual, _)) = &actual {
+            hashes.insert(file.to_string(), actual.clone());
+        }
+        match actual {
             Ok((actual, _)) if actual == hash => report.files += 1,
             Ok(_) => faults.push(format!("{file}: checksum differs from {CHECKSUMS} (changed or damaged)")),
             Err(rmvp_dataset::Error::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
@@ -83,6 +89,7 @@ pub fn verify(release: &Path) -> Result<Verification> {
             faults.push(format!("{file}: not listed in {CHECKSUMS}"));
         }
     }
+    check_croissant(release, &hashes, &mut faults);
     let mut objects: Vec<String> = std::fs::read_dir(release)
         .map_err(|e| rmvp_dataset::Error::io(release, e))?
         .filter_map(|e| e.ok())
@@ -101,6 +108,38 @@ pub fn verify(release: &Path) -> Result<Verification> {
         Ok(report)
     } else {
         Err(Error::Verification { path: release.to_path_buf(), faults })
+    }
+}
+
+/// The files `croissant.json` lists against their contents (`hashes`: the SHA-256 of each file
+/// `SHA256SUMS` lists, as read; others are read here).
+fn check_croissant(release: &Path, hashes: &std::collections::BTreeMap<String, String>, faults: &mut Vec<String>) {
+    use crate::publish::croissant::{listed_files, CROISSANT};
+    let path = release.join(CROISSANT);
+    if !path.exists() {
+        return;
+    }
+    let listed = rmvp_dataset::io::json::read_json_text(&path)
+        .map_err(|e| fault_of(&e, &path))
+        .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).map_err(|e| e.to_string()))
+        .and_then(|value| listed_files(&value));
+    let listed = match listed {
+        Ok(listed) => listed,
+        Err(why) => return faults.push(format!("{CROISSANT}: {why}")),
+    };
+    for (file, sha256) in listed {
+        let actual = match hashes.get(&file) {
+            Some(hash) => Ok(hash.clone()),
+            None => match input::inside(release, &file) {
+                Ok(inside) => sha256_file(&inside).map(|(hash, _)| hash).map_err(|e| fault_of(&e, &inside)),
+                Err(why) => Err(why),
+            },
+        };
+        match actual {
+            Ok(actual) if actual == sha256 => {}
+            Ok(_) => faults.push(format!("{CROISSANT}: {file}: sha256 differs from the file (changed or damaged)")),
+            Err(why) => faults.push(format!("{CROISSANT}: {file}: {why}")),
+        }
     }
 }
 

@@ -11,6 +11,7 @@ use rmvp_dataset::Mesh;
 use rmvp_pipeline::build::{build_dataset, BuildOptions, LengthUnit, PanoramaInput, ScanInput, TrainViews};
 use rmvp_pipeline::export::{export_scene, import_rmvp3d, ExportFormat};
 use rmvp_pipeline::ground_truth::write_ground_truth_maps;
+use rmvp_pipeline::publish::metadata::{Creator, ReleaseInfo};
 use rmvp_pipeline::publish::{publish, Archive, PublishOptions};
 use rmvp_pipeline::verify::verify;
 use rmvp_recon::presets::Preset;
@@ -93,12 +94,27 @@ pub struct PublishArgs {
     /// The release folder (must not exist).
     #[arg(short, long)]
     output: PathBuf,
-    /// SPDX license identifier of the data.
-    #[arg(long, default_value_t = PublishOptions::default().license)]
-    license: String,
-    /// Title of the datasheet.
-    #[arg(long, default_value_t = PublishOptions::default().title)]
-    title: String,
+    /// The release's metadata from a TOML file (title, version, license, description,
+    /// publisher, url, keywords, [[creators]], [[related]]; see `docs/datasets.md`); the
+    /// options below replace what it says.
+    #[arg(long)]
+    info: Option<PathBuf>,
+    /// SPDX license identifier of the data (required here or in --info).
+    #[arg(long)]
+    license: Option<String>,
+    /// A creator, "Family, Given[; affiliation[; ORCID]]", in order; at least one here or in
+    /// --info.
+    #[arg(long = "creator", value_parser = str::parse::<Creator>)]
+    creators: Vec<Creator>,
+    /// Title (default: "Polarized multi-view dataset of reflective objects").
+    #[arg(long)]
+    title: Option<String>,
+    /// Version of the data (default: 1.0.0).
+    #[arg(long)]
+    version: Option<String>,
+    /// Who publishes it (default: the first creator's affiliation).
+    #[arg(long)]
+    publisher: Option<String>,
     /// Also write the release as one archive beside it.
     #[arg(long, value_enum)]
     archive: Option<Archive>,
@@ -197,11 +213,19 @@ pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Build(args) => build(args),
         Command::Publish(args) => {
+            let given = ReleaseInfo {
+                title: args.title,
+                version: args.version,
+                license: args.license,
+                publisher: args.publisher,
+                creators: args.creators,
+                ..ReleaseInfo::default()
+            };
+            let from_file = args.info.as_deref().map(ReleaseInfo::read).transpose()?.unwrap_or_default();
             let options = PublishOptions {
                 datasets: args.datasets,
                 output: args.output,
-                license: args.license,
-                title: args.title,
+                info: from_file.overridden_by(given),
                 archive: args.archive,
                 progress: true,
             };

@@ -113,8 +113,9 @@ fn from_rows4(r: &[[f64; 4]; 4]) -> Matrix4<f64> {
     Matrix4::from_fn(|i, j| r[i][j])
 }
 
-/// Read a scene in our layout.
-pub fn read(dir: &Path) -> Result<Scene> {
+/// Read a scene's manifest (`scene.json`) in our layout, its format, version and view names
+/// checked; no image is read.
+pub fn read_manifest(dir: &Path) -> Result<SceneManifest> {
     let path = dir.join(MANIFEST);
     let text = json::read_json_text(&path)?;
     let manifest: SceneManifest =
@@ -131,6 +132,13 @@ pub fn read(dir: &Path) -> Result<Scene> {
     for record in &manifest.views {
         input::file_name(&record.name).map_err(|why| Error::format(&path, format!("view {why}")))?;
     }
+    Ok(manifest)
+}
+
+/// Read a scene in our layout.
+pub fn read(dir: &Path) -> Result<Scene> {
+    let path = dir.join(MANIFEST);
+    let manifest = read_manifest(dir)?;
     let file = |relative: &String| input::inside(dir, relative).map_err(|why| Error::format(&path, why));
     let views = manifest
         .views

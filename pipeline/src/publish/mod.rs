@@ -1,12 +1,20 @@
 //! Releases of built datasets (`rmvp dataset publish`): one folder per object (both layouts
-//! and the build record), contact sheets, a generated datasheet (`README.md`), a page to look
-//! at (`report.html`) and `SHA256SUMS`; optionally a tar or zip archive of the whole. A release
-//! is written beside its final place (`RELEASE.partial`) and moved there whole, so that a
-//! folder named like a release is always complete.
+//! and the build record), contact sheets, tables of the views and objects, a dataset card
+//! (`README.md`: the Hub's front matter above a generated datasheet), the metadata that venues
+//! and repositories read (Croissant, DataCite, Zenodo), a page to look at (`report.html`) and
+//! `SHA256SUMS`; optionally a tar or zip archive of the whole. A release is written beside its
+//! final place (`RELEASE.partial`) and moved there whole, so that a folder named like a release
+//! is always complete. Who publishes it and under what licence ([`metadata`]) must be given.
 //!
 //! ```text
-//! RELEASE/README.md                  datasheet: objects, camera, calibration, poses, scan
-//!                                    alignment, split, formats and frames, license, loading
+//! RELEASE/README.md                  dataset card: front matter (licence, configs per split),
+//!                                    then the datasheet: objects, camera, calibration, poses,
+//!                                    scan alignment, split, formats and frames, licence, loading
+//! RELEASE/croissant.json             MLCommons Croissant 1.0 (files, record sets, citations)
+//! RELEASE/datacite.json .zenodo.json DataCite's and Zenodo's metadata (creators, licence, ...)
+//! RELEASE/index/views-train.json     one record per view of the split: camera, files
+//! RELEASE/index/views-eval.json
+//! RELEASE/index/objects.json         one record per object: views, mesh, scan
 //! RELEASE/report.html                the datasheet, each object's truth in 3D and its views
 //!                                    (crate::report), the checksums
 //! RELEASE/SHA256SUMS                 `sha256sum -c` format, every other file
@@ -16,11 +24,19 @@
 //! RELEASE/<object>/contact/s0.png aop_dop.png normals.png
 //! ```
 
+pub mod card;
+pub mod croissant;
+pub mod datacite;
+pub mod index;
+pub mod metadata;
+
 use crate::build::{BuildRecord, ENV_CONVENTION};
 use crate::report::{write_dataset_report, DatasetObject, PAGE};
 use crate::{Error, Result};
+use index::{write_index, IndexedObject};
+use metadata::{license_url, ReleaseInfo, ReleaseMetadata};
 use rmvp_dataset::io::{png, write_bytes_atomically};
-use rmvp_dataset::layout::{read_scene, Layout};
+use rmvp_dataset::layout::{read_scene, rmvp::read_manifest, Layout};
 use rmvp_dataset::progress::progress_bar;
 use rmvp_dataset::session::{files_under, sha256_file};
 use rmvp_dataset::visualize::{contact_sheet, downsample, view_pictures};
@@ -55,10 +71,8 @@ pub struct PublishOptions {
     pub datasets: Vec<PathBuf>,
     /// The release folder (must not exist).
     pub output: PathBuf,
-    /// SPDX license identifier of the data.
-    pub license: String,
-    /// Title of the datasheet.
-    pub title: String,
+    /// Creators, licence, title, version, ... (the licence and the creators must be given).
+    pub info: ReleaseInfo,
     /// An archive of the release beside it.
     pub archive: Option<Archive>,
     /// Show progress bars.
@@ -70,8 +84,7 @@ impl Default for PublishOptions {
         Self {
             datasets: Vec::new(),
             output: PathBuf::from("release"),
-            license: "CC-BY-4.0".into(),
-            title: "Polarized multi-view dataset of reflective objects".into(),
+            info: ReleaseInfo::default(),
             archive: None,
             progress: true,
         }
@@ -100,6 +113,7 @@ pub fn publish(options: &PublishOptions) -> Result<Release> {
     if options.datasets.is_empty() {
         return Err(Error::Folder { path: out.clone(), why: "no dataset to publish".into() });
     }
+    let metadata = options.info.clone().resolve()?;
     let partial = sibling(out, "partial");
     if partial.exists() {
         std::fs::remove_dir_all(&partial).map_err(|e| rmvp_dataset::Error::io(&partial, e))?;
@@ -127,24 +141,60 @@ pub fn publish(options: &PublishOptions) -> Result<Release> {
         write_contact_sheets(&scene, &dir.join(CONTACT_FOLDER))?;
         objects.push((name, record, scene));
     }
-    let datasheet = datasheet(options, &objects);
-    write_bytes_atomically(&partial.join(DATASHEET), datasheet.as_bytes())?;
-    let files = files_under(&partial)?;
-    let bar = progress_bar(options.progress, files.len() as u64, "checksums");
-    let mut sums = String::new();
+    // The tables, then every data file's checksum, which the metadata lists.
+    let mut manifests = Vec::new();
+    for (name, _, _) in &objects {
+        manifests.push(read_manifest(&partial.join(name).join(Layout::Rmvp.name()))?);
+    }
+    let indexed: Vec<IndexedObject> = objects
+        .iter()
+        .zip(&manifests)
+        .map(|((name, record, _), manifest)| IndexedObject {
+            name,
+            manifest,
+            scan: record.scan.as_ref().and_then(|s| s.file.file_name()).map(|f| f.to_string_lossy().into_owned()),
+        })
+        .collect();
+    let counts = write_index(&partial, &indexed)?;
+    let data_files = files_under(&partial)?;
+    let bar = progress_bar(options.progress, data_files.len() as u64, "checksums");
+    let mut listed = Vec::new();
     let mut bytes = 0;
-    for file in &files {
+    for file in &data_files {
         let (hash, size) = sha256_file(&partial.join(file))?;
         bytes += size;
-        let _ = writeln!(sums, "{hash}  {file}");
+        listed.push((file.clone(), hash));
         bar.inc(1);
     }
     bar.finish();
+    let write_json = |name: &str, value: &serde_json::Value| {
+        let text = serde_json::to_string_pretty(value).expect("plain data") + "\n";
+        write_bytes_atomically(&partial.join(name), text.as_bytes())
+    };
+    write_json(croissant::CROISSANT, &croissant::croissant(&metadata, &listed))?;
+    let mut formats: Vec<&str> = listed.iter().map(|(f, _)| croissant::encoding_format(f)).collect();
+    formats.sort();
+    formats.dedup();
+    write_json(datacite::DATACITE, &datacite::datacite(&metadata, &formats, bytes))?;
+    write_json(datacite::ZENODO, &datacite::zenodo(&metadata))?;
+    let datasheet = datasheet(&metadata, &objects);
+    let card = card::front_matter(&metadata, counts.iter().sum()) + &datasheet;
+    write_bytes_atomically(&partial.join(DATASHEET), card.as_bytes())?;
+    let mut sums = String::new();
+    for name in [croissant::CROISSANT, datacite::DATACITE, datacite::ZENODO, DATASHEET] {
+        let (hash, size) = sha256_file(&partial.join(name))?;
+        bytes += size;
+        listed.push((name.to_string(), hash));
+    }
+    listed.sort();
+    for (file, hash) in &listed {
+        let _ = writeln!(sums, "{hash}  {file}");
+    }
     let shown: Vec<DatasetObject> = objects.iter().map(|(name, _, scene)| DatasetObject { name, scene }).collect();
-    bytes += write_page_and_checksums(&partial, &options.title, &datasheet, &shown, &sums)?;
+    bytes += write_page_and_checksums(&partial, &metadata.title, &datasheet, &shown, &sums)?;
     std::fs::rename(&partial, out).map_err(|e| rmvp_dataset::Error::io(out, e))?;
     let archive = options.archive.map(|kind| write_archive(out, kind)).transpose()?;
-    Ok(Release { objects: objects.into_iter().map(|(n, _, _)| n).collect(), files: files.len() + 1, bytes, archive })
+    Ok(Release { objects: objects.into_iter().map(|(n, _, _)| n).collect(), files: listed.len() + 1, bytes, archive })
 }
 
 /// The release's page (`report.html`), showing the data files' checksums `sums`, and
@@ -166,8 +216,9 @@ fn write_page_and_checksums(
 /// objects and its checksums, and its line in `SHA256SUMS`; returns the page's path. The data
 /// files are not read beyond what the page shows, nor checked (`rmvp dataset verify` does).
 pub fn write_release_report(release: &Path) -> Result<PathBuf> {
-    let datasheet = rmvp_dataset::io::input::read_text(&release.join(DATASHEET))?;
-    let title = datasheet.lines().next().and_then(|l| l.strip_prefix("# ")).unwrap_or("release").to_string();
+    let card = rmvp_dataset::io::input::read_text(&release.join(DATASHEET))?;
+    let datasheet = without_front_matter(&card);
+    let title = datasheet.lines().find_map(|l| l.strip_prefix("# ")).unwrap_or("release").to_string();
     let listed = rmvp_dataset::io::input::read_text(&release.join(CHECKSUMS))?;
     let sums: String =
         listed.lines().filter(|l| !l.ends_with(&format!("  {PAGE}"))).map(|l| format!("{l}\n")).collect();
@@ -181,8 +232,15 @@ pub fn write_release_report(release: &Path) -> Result<PathBuf> {
     }
     let objects: Vec<DatasetObject> =
         names.iter().zip(&scenes).map(|(name, scene)| DatasetObject { name, scene }).collect();
-    write_page_and_checksums(release, &title, &datasheet, &objects, &sums)?;
+    write_page_and_checksums(release, &title, datasheet, &objects, &sums)?;
     Ok(release.join(PAGE))
+}
+
+/// A dataset card's text after its YAML front matter (all of it when it has none).
+pub fn without_front_matter(card: &str) -> &str {
+    card.strip_prefix("---\n")
+        .and_then(|rest| rest.split_once("\n---\n"))
+        .map_or(card, |(_, body)| body.trim_start_matches('\n'))
 }
 
 /// `path` with `.suffix` added to its file name.
@@ -271,17 +329,22 @@ fn write_archive(release: &Path, kind: Archive) -> Result<PathBuf> {
 }
 
 /// The datasheet of a release.
-fn datasheet(options: &PublishOptions, objects: &[(String, BuildRecord, Scene)]) -> String {
+fn datasheet(metadata: &ReleaseMetadata, objects: &[(String, BuildRecord, Scene)]) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "# {}\n", options.title);
+    let _ = writeln!(s, "# {}\n", metadata.title);
+    let creators: Vec<&str> = metadata.creators.iter().map(|c| c.name.as_str()).collect();
     let _ = writeln!(
         s,
-        "Published with rmvp {} (`rmvp dataset publish`). License of the data: **{}** \
-         (<https://spdx.org/licenses/{}.html>). Check the files with `sha256sum -c {CHECKSUMS}` or \
-         `rmvp dataset verify .`.\n",
+        "Version {} by {}, published {} by {} with rmvp {} (`rmvp dataset publish`). License of the data: \
+         **{}** (<{}>). Check the files with `sha256sum -c {CHECKSUMS}` or `rmvp dataset verify .`.\n\n{}\n",
+        metadata.version,
+        creators.join("; "),
+        metadata.date,
+        metadata.publisher,
         env!("CARGO_PKG_VERSION"),
-        options.license,
-        options.license
+        metadata.license,
+        license_url(&metadata.license),
+        metadata.description,
     );
     let _ = writeln!(s, "## Objects\n");
     let _ = writeln!(s, "| object | views | training views | image size | ground truth | environment map |");
@@ -302,6 +365,12 @@ fn datasheet(options: &PublishOptions, objects: &[(String, BuildRecord, Scene)])
     for (name, record, _) in objects {
         let _ = write!(s, "\n## `{name}`\n\n{}", record.datasheet_section());
     }
+    let _ = write!(
+        s,
+        "\n## Citation\n\nThe data:\n\n```bibtex\n{}\n```\n\nThe method it was made for:\n\n```bibtex\n{}\n```\n",
+        croissant::dataset_citation(metadata),
+        metadata::NERSP_CITATION
+    );
     let _ = write!(
         s,
         "{}",
@@ -336,8 +405,21 @@ view is where its depth is positive. Environment map: {ENV}.
 `{CONTACT}/` holds pictures of every view: S0, AoP (hue) x DoP (brightness), ground-truth normals.
 `build.json` records how each object was built (inputs, stages, residuals).
 
+Tables (JSON arrays, one object per record, `null` where there is nothing):
+`index/views-train.json` and `index/views-eval.json` hold one record per view of the split
+(object, view, split, image size, K as fx fy cx cy skew, R row by row as r11 ... r33, t as t1 t2
+t3, and the view's files in `rmvp/`), `index/objects.json` one per object (views, ground-truth
+mesh, scan). The
+metadata: `croissant.json` (MLCommons Croissant 1.0: every data file with its SHA-256, record
+sets of the tables, the licence and citations), `datacite.json` and `.zenodo.json` (creators,
+licence and version, as DataCite and Zenodo read them); the front matter of this file is the
+Hugging Face Hub's.
+
 ## Loading
 
+- Python: `rmvp.read_release(RELEASE, split="train")`, the split's views of every object, the
+  files checked against `{CHECKSUMS}` first.
+- Croissant: `mlcroissant.Dataset("croissant.json").records("views")`.
 - NeRSP: point its `data_dir` at an object's `nersp/` folder (`data_type = ours_real`).
 - rmvp: `rmvp recon OBJECT/nersp -o out` (either layout), `rmvp eval OBJECT/nersp --pred out/mesh.ply --gt OBJECT/nersp/gt/mesh.ply`.
 - Exports: `rmvp dataset export OBJECT/rmvp --format nerfstudio|colmap|rmvp3d -o DIR`.
