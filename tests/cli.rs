@@ -68,6 +68,9 @@ fn demo_captures_builds_a_dataset_and_reconstructs_it() {
     );
     // --mesh-only: no view outputs (`rmvp recon`'s own test covers them).
     assert!(report.reconstruction.comparison.is_none() && !out.join("recon/normals").exists(), "{report:?}");
+    // The dataset's release, as the field's tools read it.
+    assert_eq!(report.release, "release");
+    check_the_release(&out.join("release"));
 
     // One raw frame of the session through `rmvp demosaic`, with the session's dark frame,
     // gives the session's Stokes.
@@ -199,6 +202,110 @@ fn demosaic_reports_a_truncated_frame_by_name() {
     assert!(err.contains("unsupported pixel format"), "{err}");
     let err = fails(&["demosaic", s(&raw), "-o", "x", "--method", "nearest"]);
     assert!(err.contains("invalid value 'nearest'") && err.contains("edge-aware"), "{err}");
+}
+
+/// The demo's release read by MLCommons' `mlcroissant` (validated, its records loaded), its
+/// card's front matter by PyYAML and its splits by `rmvp.read_release` (`tests/release_check.py`,
+/// from the `.venv` that `./run test` makes), against rmvp's own reading; then tampered with.
+fn check_the_release(release: &std::path::Path) {
+    let venv = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".venv/bin");
+    let tool = |name: &str| {
+        let path = venv.join(name);
+        assert!(path.is_file(), "{}: missing; `./run test` installs it into .venv first", path.display());
+        std::process::Command::new(path)
+    };
+    let validated = tool("mlcroissant").args(["validate", "--jsonld"]).arg(release.join("croissant.json")).output();
+    let validated = validated.unwrap();
+    let log = String::from_utf8_lossy(&validated.stderr);
+    assert!(validated.status.success() && !log.contains("WARNING") && !log.contains("ERROR"), "{log}");
+    let read = tool("python")
+        .arg(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/release_check.py"))
+        .arg(release)
+        .output();
+    let read = read.unwrap();
+    assert!(read.status.success(), "{}", String::from_utf8_lossy(&read.stderr));
+    let seen: serde_json::Value = serde_json::from_slice(&read.stdout).unwrap();
+
+    // Every view's record is rmvp's reading of the view: camera to the last bit a JSON number
+    // keeps, files that are the view's.
+    let dir = release.join("spot/rmvp");
+    let scene = rmvp_dataset::layout::read_scene(&dir).unwrap();
+    let manifest = rmvp_dataset::layout::rmvp::read_manifest(&dir).unwrap();
+    let views = seen["records"]["views"].as_array().unwrap();
+    assert_eq!(views.len(), scene.views.len(), "{seen}");
+    for (view, record) in scene.views.iter().zip(&manifest.views) {
+        let found =
+            views.iter().find(|r| r["view"] == view.name.as_str()).unwrap_or_else(|| panic!("{}: {seen}", view.name));
+        assert_eq!(
+            (found["object"].as_str(), found["split"].as_str()),
+            (Some("spot"), Some(view.split.to_string().as_str()))
+        );
+        assert_eq!(
+            (found["width"].as_u64(), found["height"].as_u64()),
+            (Some(view.camera.width as u64), Some(view.camera.height as u64))
+        );
+        let (k, r, t) = (&view.camera.k, &view.camera.r, &view.camera.t);
+        let mut expected =
+            vec![("fx", k[(0, 0)]), ("fy", k[(1, 1)]), ("cx", k[(0, 2)]), ("cy", k[(1, 2)]), ("skew", k[(0, 1)])];
+        for i in 0..3 {
+            for j in 0..3 {
+                expected.push((["r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33"][3 * i + j], r[(i, j)]));
+            }
+            expected.push((["t1", "t2", "t3"][i], t[i]));
+        }
+        for (name, value) in expected {
+            let got = found[name].as_f64().unwrap_or(f64::NAN);
+            assert!(
+                (got - value).abs() <= 1e-12 * value.abs().max(1.0),
+                "view {} {name}: {got} against {value}",
+                view.name
+            );
+        }
+        let stokes = format!("spot/rmvp/{}", record.files.stokes.as_ref().unwrap());
+        assert_eq!(found["stokes"].as_str(), Some(stokes.as_str()));
+        assert!(release.join(&stokes).is_file() && found["normal"].is_null(), "{found}");
+    }
+    let objects = &seen["records"]["objects"];
+    assert_eq!(objects.as_array().map(Vec::len), Some(1), "{seen}");
+    assert_eq!((objects[0]["object"].as_str(), objects[0]["views"].as_u64()), (Some("spot"), Some(6)));
+    assert_eq!(objects[0]["build_record"].as_str(), Some("spot/build.json"));
+
+    // The card's front matter says what the release's record says.
+    let info = rmvp_pipeline::demo::demo_release_info();
+    let card = &seen["front_matter"];
+    assert_eq!(card["license"].as_str(), info.license.map(|l| l.to_lowercase()).as_deref(), "{card}");
+    assert_eq!(card["pretty_name"].as_str(), info.title.as_deref(), "{card}");
+    assert_eq!(card["size_categories"], serde_json::json!(["n<1K"]));
+    let files = &card["configs"][0]["data_files"];
+    assert_eq!((files[0]["split"].as_str(), files[1]["split"].as_str()), (Some("train"), Some("eval")), "{card}");
+    for file in files.as_array().unwrap() {
+        assert!(release.join(file["path"].as_str().unwrap()).is_file(), "{card}");
+    }
+    let names: Vec<&str> = scene.views.iter().map(|v| v.name.as_str()).collect();
+    assert_eq!(seen["read_release"], serde_json::json!({"train": {"spot": names}, "eval": {"spot": []}}));
+
+    // A file changed after publishing: verify names it, twice (SHA256SUMS and Croissant), and
+    // so does read_release.
+    let changed = release.join(stokes_of(&manifest, 2));
+    let mut bytes = std::fs::read(&changed).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 1;
+    std::fs::write(&changed, bytes).unwrap();
+    let err = fails(&["dataset", "verify", s(release)]);
+    let name = stokes_of(&manifest, 2);
+    assert!(err.contains(&format!("croissant.json: {name}: sha256 differs")), "{err}");
+    assert!(err.contains(&format!("{name}: checksum differs from SHA256SUMS")), "{err}");
+    let script = format!(
+        "import rmvp\ntry:\n    rmvp.read_release({:?})\nexcept rmvp.InputError as e:\n    print(e)",
+        s(release)
+    );
+    let refused = tool("python").args(["-c", &script]).output().unwrap();
+    assert!(String::from_utf8_lossy(&refused.stdout).contains(&name), "{}", String::from_utf8_lossy(&refused.stderr));
+}
+
+/// The release path of view `k`'s Stokes file.
+fn stokes_of(manifest: &rmvp_dataset::layout::rmvp::SceneManifest, k: usize) -> String {
+    format!("spot/rmvp/{}", manifest.views[k].files.stokes.as_ref().unwrap())
 }
 
 #[test]

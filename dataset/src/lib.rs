@@ -14,6 +14,7 @@
 #![warn(missing_docs)]
 
 pub mod camera;
+pub mod checksums;
 pub mod error;
 pub mod exchange;
 pub mod handedness;

@@ -16,11 +16,11 @@ use crate::ground_truth::mask_iou;
 use crate::publish::CHECKSUMS;
 use crate::{Error, Result};
 use nalgebra::Point3;
+use rmvp_dataset::checksums::{check_listing, without_path};
 use rmvp_dataset::io::{input, npy, png};
 use rmvp_dataset::layout::{nersp, read_scene, Layout};
-use rmvp_dataset::session::{files_under, sha256_file};
+use rmvp_dataset::session::sha256_file;
 use rmvp_dataset::{Image, Scene};
-use std::collections::BTreeSet;
 use std::path::Path;
 
 /// Lowest IoU of a captured mask with the ground-truth silhouette.
@@ -47,48 +47,13 @@ pub struct Verification {
 pub fn verify(release: &Path) -> Result<Verification> {
     let mut faults = Vec::new();
     let mut report = Verification::default();
-    let sums_path = release.join(CHECKSUMS);
-    let listed = match input::read_text(&sums_path) {
-        Ok(text) => text,
+    let listing = match check_listing(release, CHECKSUMS) {
+        Ok(listing) => listing,
         Err(e) => return Err(Error::Verification { path: release.to_path_buf(), faults: vec![e.to_string()] }),
     };
-    let mut names = BTreeSet::new();
-    let mut hashes = std::collections::BTreeMap::new();
-    for (number, line) in listed.lines().enumerate() {
-        let line_no = number + 1;
-        let Some((hash, file)) =
-            line.split_once("  ").filter(|(h, _)| h.len() == 64 && h.bytes().all(|b| b.is_ascii_hexdigit()))
-        else {
-            faults.push(format!("{CHECKSUMS} line {line_no}: not `<sha256>  <file>`"));
-            continue;
-        };
-        // A listed name is a path inside the release, nothing else: it is never opened otherwise.
-        let path = match input::inside(release, file) {
-            Ok(path) => path,
-            Err(why) => {
-                faults.push(format!("{CHECKSUMS} line {line_no}: {why}"));
-                continue;
-            }
-        };
-        names.insert(file.to_string());
-        let actual = sha256_file(&path);
-        if let Ok((actual, _)) = &actual {
-            hashes.insert(file.to_string(), actual.clone());
-        }
-        match actual {
-            Ok((actual, _)) if actual == hash => report.files += 1,
-            Ok(_) => faults.push(format!("{file}: checksum differs from {CHECKSUMS} (changed or damaged)")),
-            Err(rmvp_dataset::Error::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
-                faults.push(format!("{file}: listed in {CHECKSUMS} but missing"))
-            }
-            Err(e) => faults.push(format!("{file}: {}", fault_of(&e, &path))),
-        }
-    }
-    for file in files_under(release)? {
-        if file != CHECKSUMS && !names.contains(&file) {
-            faults.push(format!("{file}: not listed in {CHECKSUMS}"));
-        }
-    }
+    faults.extend(listing.faults);
+    report.files = listing.matched;
+    let hashes = listing.hashes;
     check_croissant(release, &hashes, &mut faults);
     let mut objects: Vec<String> = std::fs::read_dir(release)
         .map_err(|e| rmvp_dataset::Error::io(release, e))?
@@ -120,7 +85,7 @@ fn check_croissant(release: &Path, hashes: &std::collections::BTreeMap<String, S
         return;
     }
     let listed = rmvp_dataset::io::json::read_json_text(&path)
-        .map_err(|e| fault_of(&e, &path))
+        .map_err(|e| without_path(&e, &path))
         .and_then(|text| serde_json::from_str::<serde_json::Value>(&text).map_err(|e| e.to_string()))
         .and_then(|value| listed_files(&value));
     let listed = match listed {
@@ -131,7 +96,7 @@ fn check_croissant(release: &Path, hashes: &std::collections::BTreeMap<String, S
         let actual = match hashes.get(&file) {
             Some(hash) => Ok(hash.clone()),
             None => match input::inside(release, &file) {
-                Ok(inside) => sha256_file(&inside).map(|(hash, _)| hash).map_err(|e| fault_of(&e, &inside)),
+                Ok(inside) => sha256_file(&inside).map(|(hash, _)| hash).map_err(|e| without_path(&e, &inside)),
                 Err(why) => Err(why),
             },
         };
@@ -141,13 +106,6 @@ fn check_croissant(release: &Path, hashes: &std::collections::BTreeMap<String, S
             Err(why) => faults.push(format!("{CROISSANT}: {file}: {why}")),
         }
     }
-}
-
-/// What an error says of a file, without the file's path (the fault lists name it relative to
-/// the release).
-fn fault_of(e: &rmvp_dataset::Error, path: &Path) -> String {
-    let text = e.to_string();
-    text.strip_prefix(&format!("{}: ", path.display())).map_or(text.clone(), str::to_string)
 }
 
 /// Check one object folder; returns the views checked.

@@ -26,6 +26,7 @@ __all__ = [
     "Polarization",
     "Reconstruction",
     "read_scene",
+    "read_release",
     "write_scene",
     "convert",
     "read_raw",
@@ -36,6 +37,7 @@ __all__ = [
     "evaluate",
     "align",
     "LAYOUTS",
+    "SPLITS",
     "RmvpError",
     "InputError",
     "MissingFileError",
@@ -197,6 +199,37 @@ def read_scene(path: PathLike) -> Scene:
     not there and :class:`InputError` naming the file for one that is broken."""
     d, layout = _rmvp.read_scene(os.fspath(path))
     return _scene_from(d, layout)
+
+
+#: The splits of a release's views.
+SPLITS = ("train", "eval")
+
+
+def read_release(path: PathLike, split: str = "train") -> Dict[str, Scene]:
+    """The views of ``split`` (``"train"``: the inputs of reconstruction, ``"eval"``: held out)
+    of every object of the release in ``path`` (``rmvp dataset publish``), object by object,
+    each a :class:`Scene` read from the object's ``rmvp/`` layout with only that split's views.
+    Every file is first checked against the release's ``SHA256SUMS``: a release with any file
+    changed, missing or unlisted raises :class:`InputError` naming each."""
+    if split not in SPLITS:
+        raise OptionError(f"split {split!r}: a release's splits are {', '.join(SPLITS)}")
+    root = os.fspath(path)
+    _matched, faults = _rmvp.check_listing(root, "SHA256SUMS")
+    if faults:
+        error = InputError(f"{root}: the release does not match its SHA256SUMS:\n" + "\n".join(faults))
+        error.path = root
+        raise error
+    objects = sorted(
+        entry.name
+        for entry in os.scandir(root)
+        if entry.is_dir() and os.path.isfile(os.path.join(entry.path, "build.json"))
+    )
+    release = {}
+    for name in objects:
+        scene = read_scene(os.path.join(root, name, "rmvp"))
+        scene.views = [view for view in scene.views if view.split == split]
+        release[name] = scene
+    return release
 
 
 def write_scene(scene: Union[Scene, PathLike], path: PathLike, layout: str = "rmvp") -> None:

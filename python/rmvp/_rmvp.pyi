@@ -1,7 +1,7 @@
 """Type stubs of the native module; the package's functions (``rmvp.read_scene``, ...) wrap
 these and document them."""
 
-from typing import Any, Callable, Dict, Optional, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -10,6 +10,7 @@ __version__: str
 SceneArg = Union[str, Dict[str, Any]]
 
 def read_scene(path: str) -> Tuple[Dict[str, Any], str]: ...
+def check_listing(root: str, listing: str) -> Tuple[int, List[str]]: ...
 def write_scene(scene: SceneArg, path: str, layout: str) -> None: ...
 def convert(source: str, destination: str, layout: str, mirror_aop: bool = False) -> None: ...
 def read_raw(path: str, pixel_format: str, width: int, height: int) -> Tuple[np.ndarray, int]: ...

@@ -349,6 +349,15 @@ fn read_scene<'py>(py: Python<'py>, path: PathBuf) -> PyResult<(Bound<'py, PyDic
     Ok((scene_dict(py, scene)?, layout.name()))
 }
 
+/// Check the `sha256sum`-style listing `root/listing` against the files under `root`: the
+/// files that matched and every fault (each naming its file).
+#[pyfunction]
+fn check_listing(py: Python<'_>, root: PathBuf, listing: &str) -> PyResult<(usize, Vec<String>)> {
+    let check =
+        py.detach(|| rmvp_dataset::checksums::check_listing(&root, listing)).map_err(|e| dataset_error(py, e))?;
+    Ok((check.matched, check.faults))
+}
+
 /// Write `scene` (a dictionary or a folder) into `path` in `layout`.
 #[pyfunction]
 fn write_scene(py: Python<'_>, scene: &Bound<'_, PyAny>, path: PathBuf, layout: &str) -> PyResult<()> {
@@ -577,6 +586,7 @@ fn align(py: Python<'_>, scan: PathBuf, target: PathBuf, output: PathBuf) -> PyR
 fn _rmvp(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_function(wrap_pyfunction!(read_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(check_listing, m)?)?;
     m.add_function(wrap_pyfunction!(write_scene, m)?)?;
     m.add_function(wrap_pyfunction!(convert, m)?)?;
     m.add_function(wrap_pyfunction!(read_raw, m)?)?;

@@ -53,6 +53,7 @@ pub fn run(args: Args) -> Result<()> {
     println!("  session/           the capture session (raw frames, Stokes, AoP, DoP; poses.json, masks/)");
     println!("  simulated/         ground truth (NeRSP layout with gt/): noise-free Stokes, normals, mesh");
     println!("  dataset/           the dataset built from the session (nersp/, rmvp/, build.json)");
+    println!("  release/           the dataset published: card, croissant.json, datacite.json, index/, SHA256SUMS");
     println!("  recon/             mesh.ply, mesh_parts.json, normals/, stokes/, comparison.png (input | rendered S0, AoP, normals), residuals.png, log.jsonl");
     Ok(())
 }
