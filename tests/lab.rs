@@ -221,21 +221,20 @@ fn a_lab_session_becomes_posed_masked_views() {
         aligned.alignment.transform.s, aligned.alignment.median_distance, aligned.mask_iou_mean, aligned.mask_iou_min.0
     );
     let release = tmp.path().join("release");
-    ok(&[
-        "dataset",
-        "publish",
-        s(&dataset),
-        "-o",
-        s(&release),
-        "--archive",
-        "tar",
-        "--license",
-        "CC-BY-4.0",
-        "--creator",
-        "Lab, Simulated; rmvp",
-    ]);
+    // Who publishes it and under what licence is said, or nothing is written.
+    let publish = ["dataset", "publish", s(&dataset), "-o", s(&release)];
+    let err = fails(&[&publish[..], &["--creator", "Lab, Simulated; rmvp"]].concat());
+    assert!(err.contains("licence") && err.contains("--license") && !release.exists(), "{err}");
+    let err = fails(&[&publish[..], &["--license", "CC-BY-4.0"]].concat());
+    assert!(err.contains("creators") && err.contains("--creator") && !release.exists(), "{err}");
+    ok(&[&publish[..], &["--archive", "tar", "--license", "CC-BY-4.0", "--creator", "Lab, Simulated; rmvp"]].concat());
     let verified = ok(&["dataset", "verify", s(&release)]);
     assert!(verified.contains("verified (1 object(s): lab; ") && verified.contains("24 views"), "{verified}");
+    // The objects' table names the scan and the ground-truth mesh it became.
+    let objects: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(release.join("index/objects.json")).unwrap()).unwrap();
+    assert_eq!(objects[0]["scan"], "scan.ply", "{objects}");
+    assert!(release.join(objects[0]["mesh"].as_str().unwrap()).is_file(), "{objects}");
     let datasheet = std::fs::read_to_string(release.join("README.md")).unwrap();
     assert!(datasheet.contains("CC-BY-4.0") && datasheet.contains("charuco") && datasheet.contains("scan.ply"));
     assert!(tmp.path().join("release.tar").is_file() && release.join("lab/contact/normals.png").is_file());

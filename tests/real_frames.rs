@@ -121,8 +121,10 @@ fn a_png_mosaic_needs_its_format_and_a_mono_one_is_not_taken_for_colour() {
     let out = tmp.path().join("out");
     let err = fails(&["demosaic", s(&fruits), "-o", s(&out)]);
     assert!(err.contains("fruits_IMX250MZR.png") && err.contains("carries no pixel format"), "{err}");
-    for colour in ["BayerRGPolarized8", "BayerRG8"] {
-        let err = fails(&["demosaic", s(&fruits), "--pixel-format", colour, "-o", s(&out)]);
+    // Under a colour format (a Bayer name with its sensor declared polarized, too): its Bayer
+    // colours have one mean, as only a mono sensor's do.
+    for colour in [&["BayerRGPolarized8"][..], &["BayerRG8", "--polarized-sensor"]] {
+        let err = fails(&[&["demosaic", s(&fruits), "-o", s(&out), "--pixel-format"][..], colour].concat());
         assert!(err.contains("fruits_IMX250MZR.png") && err.contains("Polarized8"), "{err}");
     }
     // The demosaicing method means nothing for a mono sensor: refused, not ignored.

@@ -2,6 +2,7 @@
 //! GenICam names, pixel-format negotiation and streaming with a buffer pool. The same code
 //! drives the FLIR Blackfly S over USB3 Vision and the simulated camera over GigE Vision.
 
+use crate::gigevision::bootstrap;
 use crate::mosaic::SensorLayout;
 use crate::raw::PixelFormat;
 use crate::{Error, Result};
@@ -15,11 +16,6 @@ use std::time::Duration;
 
 pub mod holders;
 pub mod polarizers;
-
-/// GigE Vision's bootstrap register of the primary (controlling) application's IP address.
-const PRIMARY_APPLICATION_IP: u64 = 0x0a14;
-/// GigE Vision's bootstrap register of the primary application's UDP port.
-const PRIMARY_APPLICATION_PORT: u64 = 0x0a10;
 
 /// Who controls an open camera.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -229,6 +225,17 @@ impl CameraDevice {
         Ok((camera, control))
     }
 
+    /// Give up the camera's control channel (GigE Vision) at once, so that another application
+    /// can take the camera while this one only reads it (`rmvp cameras`); over USB3 Vision the
+    /// camera stays claimed until it is closed.
+    pub fn let_go(&self) {
+        if let Some(gv) = self.device.downcast_ref::<aravis::GvDevice>() {
+            if gv.is_controller() {
+                let _ = gv.leave_control();
+            }
+        }
+    }
+
     /// Who controls the camera. Over USB3 Vision this process, once it is open (a camera
     /// another application holds does not open).
     fn control(&self) -> Control {
@@ -236,9 +243,9 @@ impl CameraDevice {
         if gv.is_controller() {
             return Control::Ours;
         }
-        let read = |address| self.device.read_register(address).ok().map(|(_, v)| v);
-        let ip = read(PRIMARY_APPLICATION_IP).filter(|&ip| ip != 0);
-        let port = read(PRIMARY_APPLICATION_PORT).unwrap_or(0) as u16;
+        let read = |address: u32| self.device.read_register(u64::from(address)).ok().map(|(_, v)| v);
+        let ip = read(bootstrap::PRIMARY_APPLICATION_IP).filter(|&ip| ip != 0);
+        let port = read(bootstrap::PRIMARY_APPLICATION_PORT).unwrap_or(0) as u16;
         Control::Elsewhere(ip.map(|ip| SocketAddrV4::new(Ipv4Addr::from(ip), port)))
     }
 

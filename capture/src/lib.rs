@@ -20,6 +20,8 @@ pub mod camera;
 pub mod correction;
 pub mod demosaic;
 pub mod error;
+#[cfg(feature = "acquisition")]
+pub mod gigevision;
 pub mod mosaic;
 pub mod pipeline;
 #[cfg(feature = "acquisition")]

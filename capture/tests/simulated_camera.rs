@@ -12,7 +12,7 @@ use std::time::Duration;
 
 /// One simulated camera at a time: each renders and streams at full speed on the machine's
 /// cores, and a frame that waits behind another test's is a frame timing out.
-static LOOPBACK: Mutex<()> = Mutex::new(());
+static ONE_CAMERA: Mutex<()> = Mutex::new(());
 
 fn config(serial: &str, formats: &[&str]) -> SimulatorOptions {
     let mut config =
@@ -35,7 +35,7 @@ fn next_frame(camera: &mut CameraDevice) -> Vec<u8> {
 
 #[test]
 fn features_round_trip() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     let sim = SimulatedCamera::start(&config("RMVPFEAT01", &[])).unwrap();
     let camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
     let id = camera.identity();
@@ -72,7 +72,7 @@ fn features_round_trip() {
 
 #[test]
 fn every_streamed_format_decodes_to_the_sensor_model() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     let formats = ["BayerRGPolarized8", "BayerRGPolarized10p", "BayerRGPolarized12p", "BayerRGPolarized16"];
     let config = config("RMVPFMT01", &formats);
     let sim = SimulatedCamera::start(&config).unwrap();
@@ -94,7 +94,7 @@ fn every_streamed_format_decodes_to_the_sensor_model() {
 
 #[test]
 fn negotiation_falls_back_to_bayer_names() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     let sim = SimulatedCamera::start(&config("RMVPNEG01", &["BayerRG8", "BayerRG16"])).unwrap();
     let mut camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
     let format = camera.configure(&CameraOptions::default()).unwrap();
@@ -121,7 +121,7 @@ fn burst(camera: &mut CameraDevice, exposure_us: f64, count: usize) -> Vec<Vec<u
 
 #[test]
 fn the_sensor_noise_depends_on_the_frames_taken_at_a_setting_not_on_the_stream_before() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     let noisy = |serial: &str| SimulatorOptions { noise: true, ..config(serial, &[]) };
     let direct = {
         let sim = SimulatedCamera::start(&noisy("RMVPNOISE01")).unwrap();
@@ -152,7 +152,7 @@ fn configured_frame(serial: &str, left: LeftState) -> Result<(RawFrame, CameraDe
 
 #[test]
 fn a_camera_left_with_gamma_a_mirrored_readout_an_odd_offset_or_a_shallow_adc_is_put_right() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     let (fresh, _, _) = configured_frame("RMVPLEFT01", LeftState::default()).unwrap();
     let left = LeftState {
         gamma: true,
@@ -187,7 +187,7 @@ fn a_camera_left_with_gamma_a_mirrored_readout_an_odd_offset_or_a_shallow_adc_is
 
 #[test]
 fn a_mirrored_readout_that_is_locked_is_refused_by_name() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     let left = LeftState { reverse_x: true, readout_locked: true, ..LeftState::default() };
     let err = configured_frame("RMVPLOCK01", left).map(|_| ()).unwrap_err();
     assert!(err.contains("RMVPLOCK01") && err.contains("ReverseX") && err.contains("locked"), "{err}");
@@ -195,7 +195,7 @@ fn a_mirrored_readout_that_is_locked_is_refused_by_name() {
 
 #[test]
 fn the_frame_rate_is_set_after_the_exposure_that_bounds_it_and_read_back() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     let sim = SimulatedCamera::start(&config("RMVPRATE01", &[])).unwrap();
     let mut camera = CameraDevice::open(Some(&sim.address.to_string())).unwrap();
     // Left enabled at 70 frames/s by another program: an exposure of 20 ms still goes through.
@@ -224,7 +224,7 @@ fn flir_descriptions() -> Vec<std::path::PathBuf> {
 
 #[test]
 fn real_flir_descriptions_are_served_and_driven_as_the_camera() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     for (k, path) in flir_descriptions().iter().enumerate() {
         let serial = format!("RMVPFLIR0{k}");
         let left = LeftState { gamma: true, reverse_x: true, ..LeftState::default() };
@@ -277,7 +277,7 @@ fn real_flir_descriptions_are_served_and_driven_as_the_camera() {
 
 #[test]
 fn a_camera_another_client_controls_is_refused_naming_it_and_free_once_let_go() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     let sim = SimulatedCamera::start(&config("RMVPCCP01", &[])).unwrap();
     let address = sim.address.to_string();
     let holder = CameraDevice::open(Some(&address)).unwrap();
@@ -294,7 +294,7 @@ fn a_camera_another_client_controls_is_refused_naming_it_and_free_once_let_go() 
 
 #[test]
 fn simulated_cameras_started_together_each_answer_on_an_address_of_their_own() {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     // The same serial on purpose (two suites start the same tests): the addresses tell them apart.
     let cameras: Vec<SimulatedCamera> = std::thread::scope(|scope| {
         let starts: Vec<_> =

@@ -346,6 +346,8 @@ pub fn cameras() -> Result<()> {
                 continue;
             }
         };
+        // Listing only reads: a capture starting now on this camera must find it free.
+        camera.let_go();
         let id = camera.identity();
         println!("  {} {}, serial {}, firmware {}", id.vendor, id.model, id.serial, id.firmware);
         match control {

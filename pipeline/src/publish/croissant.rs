@@ -105,19 +105,28 @@ fn fields(set: &str, columns: &[Column], source: &Value) -> Vec<Value> {
 }
 
 /// The Croissant JSON-LD of a release: `metadata`, and `files`, every data file with its
-/// SHA-256 (paths relative to the release, `/`-separated).
-pub fn croissant(metadata: &ReleaseMetadata, files: &[(String, String)]) -> Value {
+/// SHA-256 (paths relative to the release, `/`-separated), described by `owners` (the object,
+/// view and split a file belongs to) where it says.
+pub fn croissant(
+    metadata: &ReleaseMetadata,
+    files: &[(String, String)],
+    owners: &std::collections::BTreeMap<String, String>,
+) -> Value {
     let mut distribution: Vec<Value> = files
         .iter()
         .map(|(file, sha256)| {
-            json!({
+            let mut object = json!({
                 "@type": "cr:FileObject",
                 "@id": file,
                 "name": file,
                 "contentUrl": file,
                 "encodingFormat": encoding_format(file),
                 "sha256": sha256,
-            })
+            });
+            if let Some(owner) = owners.get(file) {
+                object["description"] = json!(owner);
+            }
+            object
         })
         .collect();
     distribution.push(json!({

@@ -156,3 +156,27 @@ pub fn write_index(release: &Path, objects: &[IndexedObject]) -> Result<[usize; 
     write_bytes_atomically(&release.join(OBJECTS_TABLE), table(&OBJECT_COLUMNS, &rows).as_bytes())?;
     Ok(counts)
 }
+
+/// What each of the objects' files belongs to: `object spot, view 003 (train)` for a view's
+/// files in `rmvp/` (the NeRSP layout holds the same views, numbered), `object spot` for the
+/// object's other files, keyed by their paths in the release.
+pub fn file_owners(objects: &[IndexedObject], files: &[String]) -> std::collections::BTreeMap<String, String> {
+    let mut owners = std::collections::BTreeMap::new();
+    for object in objects {
+        let prefix = format!("{}/", object.name);
+        for file in files.iter().filter(|f| f.starts_with(&prefix)) {
+            owners.insert(file.clone(), format!("object {}", object.name));
+        }
+        for view in &object.manifest.views {
+            let f = &view.files;
+            let mut named: Vec<&String> =
+                [&f.stokes, &f.mask, &f.aop, &f.dop, &f.normal, &f.depth, &f.preview].into_iter().flatten().collect();
+            named.extend(f.polarizers.iter().flatten());
+            for file in named {
+                let owner = format!("object {}, view {} ({})", object.name, view.name, view.split);
+                owners.insert(format!("{}/rmvp/{file}", object.name), owner);
+            }
+        }
+    }
+    owners
+}

@@ -35,6 +35,7 @@ use crate::report::{write_dataset_report, DatasetObject, PAGE};
 use crate::{Error, Result};
 use index::{write_index, IndexedObject};
 use metadata::{license_url, ReleaseInfo, ReleaseMetadata};
+use rmvp_dataset::io::json::write_json;
 use rmvp_dataset::io::{png, write_bytes_atomically};
 use rmvp_dataset::layout::{read_scene, rmvp::read_manifest, Layout};
 use rmvp_dataset::progress::progress_bar;
@@ -167,16 +168,13 @@ pub fn publish(options: &PublishOptions) -> Result<Release> {
         bar.inc(1);
     }
     bar.finish();
-    let write_json = |name: &str, value: &serde_json::Value| {
-        let text = serde_json::to_string_pretty(value).expect("plain data") + "\n";
-        write_bytes_atomically(&partial.join(name), text.as_bytes())
-    };
-    write_json(croissant::CROISSANT, &croissant::croissant(&metadata, &listed))?;
+    let owners = index::file_owners(&indexed, &data_files);
+    write_json(&partial.join(croissant::CROISSANT), &croissant::croissant(&metadata, &listed, &owners))?;
     let mut formats: Vec<&str> = listed.iter().map(|(f, _)| croissant::encoding_format(f)).collect();
     formats.sort();
     formats.dedup();
-    write_json(datacite::DATACITE, &datacite::datacite(&metadata, &formats, bytes))?;
-    write_json(datacite::ZENODO, &datacite::zenodo(&metadata))?;
+    write_json(&partial.join(datacite::DATACITE), &datacite::datacite(&metadata, &formats, bytes))?;
+    write_json(&partial.join(datacite::ZENODO), &datacite::zenodo(&metadata))?;
     let datasheet = datasheet(&metadata, &objects);
     let card = card::front_matter(&metadata, counts.iter().sum()) + &datasheet;
     write_bytes_atomically(&partial.join(DATASHEET), card.as_bytes())?;
