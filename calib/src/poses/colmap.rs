@@ -1,7 +1,8 @@
 //! Poses from COLMAP (Debian's `colmap` 3.8, run as a program, headless and offline): CPU SIFT
 //! on each view's S0 with the object painted out by its mask (features come from the board and
 //! the table, not from the reflective object), exhaustive (or sequential) matching, and the
-//! incremental mapper with the calibrated intrinsics fixed (`OPENCV` model). The largest model
+//! incremental mapper with the calibrated intrinsics fixed (`OPENCV` model), using only pairs
+//! and registrations of at least [`MIN_VERIFIED_MATCHES`] inliers. The largest model
 //! is kept; views it did not register are reported. Never the vocabulary-tree matcher, which
 //! needs a downloaded file.
 
@@ -58,6 +59,15 @@ impl Default for ColmapOptions {
         }
     }
 }
+
+/// The fewest verified matches (inliers of a pair's two-view geometry) that the mapper uses a
+/// pair of views by, and the fewest inliers it registers a view with (COLMAP's defaults: 15 and
+/// 30). A board's repeating squares match across views 60, 90 and 180 degrees apart with 19-48
+/// inliers that are mostly wrong, where right pairs have hundreds; two views registered by such
+/// a pair are posed tens of degrees off, consistently with each other. At 60 the mapper leaves
+/// those pairs out, and a view that only weak pairs would pose is reported as not registered
+/// instead (`docs/design.md`, COLMAP).
+pub const MIN_VERIFIED_MATCHES: usize = 60;
 
 /// What the world frame of COLMAP poses is.
 pub const COLMAP_WORLD: &str = "COLMAP's model frame (arbitrary origin, orientation and scale)";
@@ -159,6 +169,8 @@ pub fn colmap_poses(
         arg("Mapper.ba_refine_focal_length", 0),
         arg("Mapper.ba_refine_principal_point", 0),
         arg("Mapper.ba_refine_extra_params", 0),
+        arg("Mapper.min_num_matches", MIN_VERIFIED_MATCHES),
+        arg("Mapper.abs_pose_min_num_inliers", MIN_VERIFIED_MATCHES),
     ]
     .concat();
     run_colmap(options, workspace, "mapper", &mapping)?;
