@@ -41,12 +41,13 @@ fn lab_setup() -> LabOptions {
     LabOptions { board: BoardOptions { squares: [10, 8], ..BoardOptions::default() }, ..LabOptions::default() }
 }
 
-/// One simulated camera on the loopback address at a time: tests take turns.
-static LOOPBACK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+/// One simulated camera at a time: each renders and streams at full speed on the machine's
+/// cores, and a frame that waits behind another test's is a frame timing out.
+static ONE_CAMERA: std::sync::Mutex<()> = std::sync::Mutex::new(());
 
 /// A session from the in-process simulated camera.
 fn capture(dir: &Path, views: usize, setup: &[&str]) {
-    let _turn = LOOPBACK.lock().unwrap_or_else(|e| e.into_inner());
+    let _turn = ONE_CAMERA.lock().unwrap_or_else(|e| e.into_inner());
     let views = views.to_string();
     let seed = rmvp_testkit::test_seed().to_string();
     let mut args = vec!["capture", "--simulated", "--seed", &seed, "--object", "lab", "--mode", "turntable"];
