@@ -63,10 +63,10 @@ impl Default for ColmapOptions {
 /// The fewest verified matches (inliers of a pair's two-view geometry) that the mapper uses a
 /// pair of views by, and the fewest inliers it registers a view with (COLMAP's defaults: 15 and
 /// 30). A board's repeating squares match across views 60, 90 and 180 degrees apart with 19-48
-/// inliers that are mostly wrong, where right pairs have hundreds; two views registered by such
-/// a pair are posed tens of degrees off, consistently with each other. At 60 the mapper leaves
-/// those pairs out, and a view that only weak pairs would pose is reported as not registered
-/// instead (`docs/design.md`, COLMAP).
+/// inliers that are mostly wrong, where most right pairs have hundreds; two views registered by
+/// such a pair are posed tens of degrees off, consistently with each other. At 60 the mapper
+/// leaves those pairs out, and a view that only weak pairs would pose is reported as not
+/// registered instead (`docs/design.md`, COLMAP).
 pub const MIN_VERIFIED_MATCHES: usize = 60;
 
 /// What the world frame of COLMAP poses is.
