@@ -137,7 +137,10 @@ fn a_lab_session_becomes_posed_masked_views() {
     assert!(mean_iou > 0.98 && min_iou > 0.97, "IoU mean {mean_iou:.4}, lowest {min_iou:.4}");
     assert!(masks.join("contact_sheet.png").is_file() && lab.join("masks/005.png").is_file());
 
-    // COLMAP, the object painted out by the session's masks: right up to a similarity.
+    // COLMAP, the object painted out by the session's masks: right up to a similarity. Each view
+    // matched with the next three in turntable order (up to 45 degrees on): a third of exhaustive
+    // matching's time, and none of the pairs 60 degrees and more apart that the board's
+    // repeating squares match wrongly.
     let colmap_file = tmp.path().join("colmap.json");
     ok(&[
         "poses",
@@ -148,6 +151,10 @@ fn a_lab_session_becomes_posed_masked_views() {
         s(&camera_file),
         "--max-features",
         "2048",
+        "--matcher",
+        "sequential",
+        "--overlap",
+        "3",
         "-o",
         s(&colmap_file),
     ]);
@@ -198,7 +205,7 @@ fn a_lab_session_becomes_posed_masked_views() {
     let build = |extra: &[&str], run: fn(&[&str]) -> String| {
         let mut args = vec!["dataset", "build", s(&lab), "-o", s(&dataset), "--train-views", train];
         args.extend(["--camera", s(&camera_file), "--scan", s(&scan_file), "--env", s(&pano)]);
-        args.extend(["--reference-preset", "fast", "--reference-iters", "500", "--reference-mesh-res", "192"]);
+        args.extend(["--reference-preset", "fast", "--reference-iters", "300", "--reference-mesh-res", "192"]);
         args.extend_from_slice(extra);
         run(&args)
     };
@@ -215,7 +222,7 @@ fn a_lab_session_becomes_posed_masked_views() {
     let record = BuildRecord::read(&dataset).unwrap();
     assert!(record.complete);
     let log = std::fs::read_to_string(dataset.join("work/reference/log.jsonl")).unwrap();
-    assert_eq!(log.lines().count(), 500);
+    assert_eq!(log.lines().count(), 300);
     let aligned = record.scan.as_ref().unwrap();
     eprintln!(
         "scan aligned: scale {:.5}, median distance {:.4} mm, masks IoU mean {:.4}, lowest {:.4}",
@@ -256,7 +263,7 @@ fn a_lab_session_becomes_posed_masked_views() {
 
     // The release's ground truth against the simulator's: the mesh within 0.3 % of the object's
     // size, the normals within 1.5 degrees (median), the environment map as the renderer's.
-    // Seeds 0 and 1 gave 0.14 and 0.06 %, 0.89 and 0.55 degrees: the scan's alignment onto the
+    // Seeds 0 and 1 gave 0.12 and 0.17 %, 0.91 and 1.01 degrees: the scan's alignment onto the
     // reference reconstruction varies with the session's noise (docs/design.md, test bounds).
     let published = read_scene(&release.join("lab/nersp")).unwrap();
     let gt_mesh = published.mesh.clone().unwrap();
