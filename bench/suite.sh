@@ -13,15 +13,20 @@ ln -s "$(cd .. && pwd)/shared" "$work/shared"
 git clone --quiet . "$work/rmvp"
 commit=$(git -C "$work/rmvp" rev-parse --short HEAD)
 start=$(date +%s)
-status=0
-(cd "$work/rmvp" && ./run test) > "$work/log.txt" 2>&1 || status=$?
+# Each line of the log begins with the seconds since the start: where the time goes.
+set +e
+(cd "$work/rmvp" && ./run test) 2>&1 | while IFS= read -r line; do
+  printf '%5d s  %s\n' $((EPOCHSECONDS - start)) "$line"
+done > "$work/log.txt"
+status=${PIPESTATUS[0]}
+set -e
 end=$(date +%s)
 if [ "$status" -ne 0 ]; then
   tail -n 40 "$work/log.txt" >&2
   echo "bench/suite.sh: ./run test failed (exit $status); the full log is $work/log.txt" >&2
   exit "$status"
 fi
-rust=$(grep -oE '^test result: ok\. [0-9]+ passed' "$work/log.txt" | awk '{ n += $4 } END { print n + 0 }')
+rust=$(grep -oE 'test result: ok\. [0-9]+ passed' "$work/log.txt" | awk '{ n += $4 } END { print n + 0 }')
 python=$(grep -oE '[0-9]+ passed' "$work/log.txt" | tail -n 1 | awk '{ print $1 }')
 seconds=$((end - start))
 minutes="$((seconds / 60)) min $((seconds % 60)) s"
