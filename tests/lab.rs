@@ -97,10 +97,18 @@ fn a_lab_session_becomes_posed_masked_views() {
     let found: Vec<Camera> = charuco.views.iter().map(|v| Camera::try_from(&v.camera).unwrap()).collect();
     let errors = pose_errors(&found, cameras, false);
     let (worst_deg, worst_rel) = (errors.max_rotation_deg(), errors.max_centre_distance() / distance);
-    eprintln!("charuco poses: rotation error at most {worst_deg:.4} deg, centres within {:.4} %", 100.0 * worst_rel);
-    // Seeds 0 and 1 (`bench/test-margins.sh --lab`): at most 0.094 and 0.076 degrees, 0.14 and
-    // 0.12 % (docs/design.md, test bounds).
-    assert!(worst_deg < 0.15 && worst_rel < 0.002, "{worst_deg} deg, {worst_rel}");
+    // A focal length off by some share puts each board that share too far or too near, so the
+    // centres are judged beyond what the calibration's focal error explains (up to 0.23 % at
+    // seed 2, within the calibration's own bound above).
+    let focal_error = (k[(0, 0)] / want[(0, 0)] - 1.0).abs().max((k[(1, 1)] / want[(1, 1)] - 1.0).abs());
+    eprintln!(
+        "charuco poses: rotation error at most {worst_deg:.4} deg, centres within {:.4} % (focal length {:.4} % off)",
+        100.0 * worst_rel,
+        100.0 * focal_error
+    );
+    // Seeds 0-2 (`bench/test-margins.sh --lab`): at most 0.094, 0.076 and 0.109 degrees; 0.14,
+    // 0.12 and 0.28 % with the focal length 0.004, 0.015 and 0.23 % off (docs/design.md, test bounds).
+    assert!(worst_deg < 0.15 && worst_rel < 0.0025 + focal_error, "{worst_deg} deg, {worst_rel}, focal {focal_error}");
 
     // The posed session is the rig calibration of the empty lab (same turntable positions);
     // and its poses, exported as nerfstudio transforms, import back.
