@@ -146,8 +146,8 @@ fn a_lab_session_becomes_posed_masked_views() {
     assert!(masks.join("contact_sheet.png").is_file() && lab.join("masks/005.png").is_file());
 
     // COLMAP, the object painted out by the session's masks: right up to a similarity. Each view
-    // matched with the next three in turntable order (up to 45 degrees on): a third of exhaustive
-    // matching's time, and none of the pairs 60 degrees and more apart that the board's
+    // matched with the next three in turntable order (up to 45 degrees on): fewer pairs than
+    // exhaustive matching, and none of the pairs 60 degrees and more apart that the board's
     // repeating squares match wrongly.
     let colmap_file = tmp.path().join("colmap.json");
     ok(&[
