@@ -313,9 +313,9 @@ fn a_lab_session_becomes_posed_masked_views() {
 
     // `rmvp recon` on the release's six-view split (its undistorted views, the build's
     // normalisation) beside the same command on the session's six views with the true poses
-    // and masks (one thread each, 400 iterations); `rmvp eval` against the release's ground
+    // and masks (one thread each, 1000 iterations); `rmvp eval` against the release's ground
     // truth. Over all 24 views, the two reconstructions' normal errors (against the
-    // simulator's true normals) differ by less than 2 degrees, and the release's ground truth
+    // simulator's true normals) differ by less than 5 degrees, and the release's ground truth
     // judges the first as the simulator's does, within 1.5 degrees.
     let train: Vec<String> = train.split(',').map(String::from).collect();
     let mut true_scene = posed_scene(&lab, &charuco, Some(&masks), &train).unwrap();
@@ -332,7 +332,7 @@ fn a_lab_session_becomes_posed_masked_views() {
         view.normals = Some(truth.geometry(v).normals);
     }
     let recon = |scene: &Path, out: &Path| {
-        let args = ["--threads", "1", "recon", s(scene), "-o", s(out), "--iters", "400", "--mesh-res", "160"];
+        let args = ["--threads", "1", "recon", s(scene), "-o", s(out), "--iters", "1000", "--mesh-res", "160"];
         ok(&[&args[..], &["--mesh-only", "--seed", &rmvp_testkit::test_seed().to_string()]].concat());
         Mesh::read(&out.join("mesh.ply")).unwrap()
     };
@@ -356,10 +356,10 @@ fn a_lab_session_becomes_posed_masked_views() {
          masks; the release's own ground truth gives the first {judged:.2} (Chamfer {:.3} mm)",
         evaluated["chamfer"].as_f64().unwrap()
     );
-    // One 400-iteration run each: the gap seen over runs (captured inputs differ in noise) was
-    // 0.07-1.66 degrees, so 2 here; the release's ground truth judged it within 0.35 of the
-    // simulator's, so 1.5.
-    assert!((from_release - with_truth).abs() < 2.0, "{from_release:.2} vs {with_truth:.2}");
+    // Seeds 0-4: 3.49-5.86 degrees from the release, 3.02-4.18 with the truth, 0.18-2.74 apart
+    // (2.24 at seed 0), so 5; the release's ground truth judged the first within 0.13-0.86 of
+    // the simulator's (docs/design.md, test bounds).
+    assert!((from_release - with_truth).abs() < 5.0, "{from_release:.2} vs {with_truth:.2}");
     assert!((judged - from_release).abs() < 1.5, "{judged:.2} vs {from_release:.2}");
 }
 
