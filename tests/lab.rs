@@ -357,7 +357,7 @@ fn a_lab_session_becomes_posed_masked_views() {
         evaluated["chamfer"].as_f64().unwrap()
     );
     // Seeds 0-4: 3.49-5.86 degrees from the release, 3.02-4.18 with the truth, 0.18-2.74 apart
-    // (2.24 at seed 0), so 5; the release's ground truth judged the first within 0.13-0.86 of
+    // (2.08 at seed 0), so 5; the release's ground truth judged the first within 0.13-0.86 of
     // the simulator's (docs/design.md, test bounds).
     assert!((from_release - with_truth).abs() < 5.0, "{from_release:.2} vs {with_truth:.2}");
     assert!((judged - from_release).abs() < 1.5, "{judged:.2} vs {from_release:.2}");
