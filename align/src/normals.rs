@@ -1,6 +1,8 @@
-//! Normal angular error of a predicted mesh in the views of a scene: its normals are ray cast
-//! at every pixel centre and compared with the scene's ground-truth normal maps over the
-//! pixels where both the ground-truth mask and the prediction cover the object.
+//! Normal angular error of a predicted mesh in the views of a scene: its normal maps are ray
+//! cast as the ground truth's are (each pixel its footprint's mean normal,
+//! [`rmvp_render::GeometryMaps::normals`]) and compared with the scene's ground-truth normal maps
+//! over the pixels where both the ground-truth mask and the prediction's centre ray cover the
+//! object.
 
 use crate::{Error, Result};
 use rayon::prelude::*;

@@ -35,7 +35,7 @@ pub struct RenderedView {
     pub mask: Image<u8>,
     /// z-depth of the pixel-centre ray's hit; 0 on background.
     pub depth: Image<f32>,
-    /// World-frame shading normal at the pixel-centre hit; 0 on background.
+    /// World-frame shading normal, its footprint's mean ([`GeometryMaps::normals`]); 0 on background.
     pub normals: Image<f32>,
     /// Which part the pixel-centre ray hits first: 1 + its index, 0 for none.
     pub parts: Image<u8>,
@@ -102,13 +102,27 @@ pub struct GeometryMaps {
     pub mask: Image<u8>,
     /// z-depth of the subject's hit; 0 elsewhere.
     pub depth: Image<f32>,
-    /// World-frame shading normal at the subject's hit (facing the camera); 0 elsewhere.
+    /// World-frame shading normal (facing the camera) where the centre ray hits the subject,
+    /// 0 elsewhere: the mean over the pixel's footprint of the normals where it meets the
+    /// subject, normalised, as a renderer's box-filtered normal image holds it (Mitsuba's,
+    /// `docs/conventions.md`); on a pixel whose neighbours' centre normals all lie within
+    /// [`FOOTPRINT_SMOOTH_DEG`] of its own and all hit the same part, its centre's normal.
     pub normals: Image<f32>,
     /// Which part the centre ray hits first: 1 + its index, 0 for none.
     pub parts: Image<u8>,
 }
 
-/// Ray-cast the pixel centres of a camera: mask, depth and normal maps.
+/// Sub-pixel rays a side over which a pixel's footprint normal is averaged (stratified, one at
+/// the centre of each cell of a `FOOTPRINT_SAMPLES` square grid over the pixel).
+pub const FOOTPRINT_SAMPLES: usize = 4;
+
+/// Largest angle, degrees, between a pixel's centre normal and its neighbours' at which its
+/// footprint's mean normal is taken to be its centre's (within a few hundredths of a degree
+/// there): silhouettes, creases and occlusion edges are averaged over the footprint.
+pub const FOOTPRINT_SMOOTH_DEG: f32 = 4.0;
+
+/// Ray-cast the pixel centres of a camera: mask, depth, part and normal maps; the normals are
+/// averaged over the footprint of the pixels at an edge ([`GeometryMaps::normals`]).
 pub fn geometry_maps(object: &Object, camera: &Camera) -> GeometryMaps {
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut mask = Image::new(w, h, 1);
@@ -135,7 +149,58 @@ pub fn geometry_maps(object: &Object, camera: &Camera) -> GeometryMaps {
                 }
             }
         });
-    GeometryMaps { mask, depth, normals, parts }
+    let footprint = footprint_normals(object, camera, &mask, &normals, &parts);
+    GeometryMaps { mask, depth, normals: footprint, parts }
+}
+
+/// The normal map averaged over the footprint of each pixel at an edge of `normals` (centre
+/// normals): where a neighbour's centre misses the subject, hits another part, or has a normal
+/// more than [`FOOTPRINT_SMOOTH_DEG`] from the pixel's own.
+fn footprint_normals(
+    object: &Object,
+    camera: &Camera,
+    mask: &Image<u8>,
+    normals: &Image<f32>,
+    parts: &Image<u8>,
+) -> Image<f32> {
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let smooth_cos = FOOTPRINT_SMOOTH_DEG.to_radians().cos();
+    let camera_center = Vec3::from_f64(&camera.center().coords);
+    let rays = RayGenerator::new(camera);
+    let centre = |k: usize| Vec3::new(normals.data()[3 * k], normals.data()[3 * k + 1], normals.data()[3 * k + 2]);
+    let at_edge = |i: usize, j: usize| {
+        let k = j * w + i;
+        let n = centre(k);
+        (j.saturating_sub(1)..(j + 2).min(h)).any(|y| {
+            (i.saturating_sub(1)..(i + 2).min(w)).any(|x| {
+                let q = y * w + x;
+                mask.data()[q] == 0 || parts.data()[q] != parts.data()[k] || centre(q).dot(n) < smooth_cos
+            })
+        })
+    };
+    let mut out = normals.clone();
+    out.data_mut().par_chunks_mut(3 * w).enumerate().for_each(|(j, row)| {
+        for i in 0..w {
+            if mask.data()[j * w + i] == 0 || !at_edge(i, j) {
+                continue;
+            }
+            let mut sum = Vec3::new(0.0, 0.0, 0.0);
+            let cell = 1.0 / FOOTPRINT_SAMPLES as f32;
+            for b in 0..FOOTPRINT_SAMPLES {
+                for a in 0..FOOTPRINT_SAMPLES {
+                    let (u, v) = (i as f32 + (a as f32 + 0.5) * cell, j as f32 + (b as f32 + 0.5) * cell);
+                    if let Some(hit) = object.intersect(camera_center, rays.direction(u, v)).filter(|hit| hit.subject) {
+                        sum = sum + hit.n;
+                    }
+                }
+            }
+            if sum.length() > 0.0 {
+                let n = sum.normalize();
+                row[3 * i..3 * i + 3].copy_from_slice(&[n.x, n.y, n.z]);
+            }
+        }
+    });
+    out
 }
 
 /// Camera ray directions in `f32`: through `R^T K^-1 (u, v, 1)` for pinhole cameras, through

@@ -60,15 +60,20 @@ fn agrees_with_mitsuba_on_the_fixtures() {
             assert!(iou >= 0.99, "{}: view {}: mask IoU {iou}", dir.display(), view.name);
         }
         let median_normal = quantile(normal_errors.clone(), 0.5);
+        let mean_normal = normal_errors.iter().sum::<f64>() / normal_errors.len() as f64;
         let (aop_median, aop_p90) = (quantile(aop_errors.clone(), 0.5), quantile(aop_errors.clone(), 0.9));
         let within_5 = aop_errors.iter().filter(|&&e| e < 5.0).count() as f64 / aop_errors.len() as f64;
         eprintln!(
-            "{}: normal median {median_normal:.3} deg; AoP (DoP > 0.05, {} px) median {aop_median:.2} deg, p90 {aop_p90:.2} deg, {:.1}% within 5 deg",
+            "{}: normal median {median_normal:.3} deg, mean {mean_normal:.3} deg; AoP (DoP > 0.05, {} px) median {aop_median:.2} deg, p90 {aop_p90:.2} deg, {:.1}% within 5 deg",
             dir.display(),
             aop_errors.len(),
             100.0 * within_5
         );
-        assert!(median_normal < 1.0, "median normal error {median_normal}");
+        // Mitsuba's normal images are box-filtered: each pixel the mean over its footprint. Ours
+        // agree to medians of 0.05 (bunny) and 0.02 (spot) degrees, means 0.19 and 0.12; the
+        // normal at each pixel's centre alone differs from theirs by medians of 0.80 and 0.09,
+        // means 1.63 and 0.63 (the geometry is exact: no Monte Carlo noise in either).
+        assert!(median_normal < 0.2 && mean_normal < 0.4, "normal error median {median_normal}, mean {mean_normal}");
         // Measured at 64 spp: medians 1.6 (spot) and 2.2 (bunny) degrees, 78-85 % within 5
         // degrees; at 128 spp 1.3 and 1.7. What remains is mostly Monte Carlo noise of both
         // renderers at low DoP (see docs/renderer.md).
