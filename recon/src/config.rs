@@ -56,10 +56,14 @@ pub struct TrainConfig {
     pub start_levels: usize,
     /// The curvature weight follows the coarse-to-fine schedule (Neuralangelo): it ramps up
     /// from 0 over the learning rate's warm-up, then falls as the hash grid's levels open, in
-    /// proportion to the finest active level's cell, from `weights` at the start levels; off,
-    /// `weights` holds throughout.
+    /// proportion to the finest active level's cell to the power `curvature_cell_power`, from
+    /// `weights` at the start levels; off, `weights` holds throughout.
     #[serde(default)]
     pub curvature_follows_levels: bool,
+    /// The power of the finest active cell that the curvature weight follows
+    /// (`curvature_follows_levels`): 1 is Neuralangelo's proportion.
+    #[serde(default = "proportional")]
+    pub curvature_cell_power: f32,
     /// Iterations between two hash-grid levels.
     pub anneal_every: u32,
     /// Random seed.
@@ -72,4 +76,8 @@ pub struct TrainConfig {
 
 fn full_size() -> u32 {
     1
+}
+
+fn proportional() -> f32 {
+    1.0
 }

@@ -46,11 +46,18 @@ impl Preset {
 pub const CURVATURE_WEIGHT: f32 = 5e-3;
 
 /// Curvature weight of the fast preset while only its coarse hash-grid levels are open; it
-/// falls as the finer ones open, in proportion to the finest open level's cell
-/// ([`TrainConfig::curvature_follows_levels`], Neuralangelo's schedule), to about 3.1e-3 with
-/// all eight: a smooth shape settles under the coarse levels' strong smoothing, and edges
-/// come with the fine levels' weak one (`docs/design.md`, coarse to fine).
+/// falls as the finer ones open, as the finest open level's cell to the power
+/// [`FAST_CURVATURE_CELL_POWER`] ([`TrainConfig::curvature_follows_levels`], Neuralangelo's
+/// schedule), to about 2.05e-3 with all eight: a smooth shape settles under the coarse levels'
+/// strong smoothing, and edges come with the fine levels' weak one (`docs/design.md`, coarse
+/// to fine).
 pub const FAST_CURVATURE_WEIGHT: f32 = 1.5e-2;
+
+/// The power of the finest open cell that the fast preset's curvature weight follows: faster
+/// than Neuralangelo's proportion (1, to about 3.1e-3), which rounded the Mitsuba fandisk's and
+/// rocker arm's edges; the smooth spot keeps its normals, which the coarse levels' weight gives
+/// it (`docs/experiments.md`, coarse to fine).
+pub const FAST_CURVATURE_CELL_POWER: f32 = 1.256;
 
 /// The fast preset's robust angle of the AoP tangent term, degrees, on curved surfaces
 /// ([`crate::geometric::curved_robust_scale`]): on the Mitsuba set (`docs/benchmarks.md`) spot
@@ -202,6 +209,7 @@ pub fn training(preset: Preset, iterations: u32) -> TrainConfig {
         background_share: BACKGROUND_SHARE,
         start_levels,
         curvature_follows_levels: preset == Preset::Fast,
+        curvature_cell_power: if preset == Preset::Fast { FAST_CURVATURE_CELL_POWER } else { 1.0 },
         anneal_every,
         seed: 0,
         downscale: 1,

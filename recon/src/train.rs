@@ -155,7 +155,8 @@ impl Trainer {
     /// The share of the curvature weight at the current iteration, whose hash-grid levels
     /// are `level_weight`: 1 throughout unless the weight follows the levels
     /// ([`TrainConfig::curvature_follows_levels`]); then from 0 to 1 over the learning rate's
-    /// warm-up, times the finest active level's cell over the start levels' finest cell.
+    /// warm-up, times the finest active level's cell over the start levels' finest cell to the
+    /// power [`TrainConfig::curvature_cell_power`].
     pub fn curvature_share(&self, level_weight: &[f32]) -> f32 {
         if !self.config.curvature_follows_levels {
             return 1.0;
@@ -167,7 +168,7 @@ impl Trainer {
             (Some(start), Some(now)) => start as f32 / now as f32,
             _ => 1.0,
         };
-        ramp * cells
+        ramp * cells.powf(self.config.curvature_cell_power)
     }
 
     /// Finite-difference step of the normals in training: the finest active grid cell
