@@ -365,7 +365,7 @@ def reconstruct(
 ) -> Reconstruction:
     """Reconstruct ``scene`` (a :class:`Scene` or a scene folder) into the folder ``output``,
     as ``rmvp recon`` does, with its options under their field names (``preset="dense"``,
-    ``iters=3000``, ``min_sample_weight=1e-4``; ``rmvp recon --help`` lists them; an unknown
+    ``iters=3300``, ``min_sample_weight=1e-4``; ``rmvp recon --help`` lists them; an unknown
     name raises :class:`OptionError`).
 
     ``progress(step)`` is called after every iteration with the step's report (``iteration``,

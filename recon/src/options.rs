@@ -25,7 +25,7 @@ pub struct ReconOptions {
     /// rays, 4000 iterations: a dataset's reference shape) or `paper` (NeRSP's 8x256 MLP).
     #[cfg_attr(feature = "clap", arg(long, value_enum, default_value_t = Preset::Fast))]
     pub preset: Preset,
-    /// Training iterations (default: the preset's; fast 3000, about 2 minutes on 2 cores).
+    /// Training iterations (default: the preset's; fast 3300, about 2 minutes on 2 cores).
     #[cfg_attr(feature = "clap", arg(long))]
     pub iters: Option<u32>,
     /// Photometric cue only (the PANDORA-like ablation).
