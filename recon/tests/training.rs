@@ -585,7 +585,7 @@ fn the_tangent_loss_over_a_sample_of_the_views_estimates_its_mean_over_every_vie
 #[test]
 fn the_fast_presets_curvature_weight_ramps_up_then_falls_as_the_grids_levels_open() {
     let scene = rmvp_dataset::layout::read_scene(&rmvp_testkit::fixture("spot_nersp")).unwrap();
-    let config = presets::training(Preset::Fast, 3000);
+    let config = presets::training(Preset::Fast, Preset::Fast.default_iterations());
     assert!(config.curvature_follows_levels);
     let set = TrainingSet::from_scene(&scene, config.margin).unwrap();
     let mut trainer = Trainer::new(config.clone(), set.clone());
