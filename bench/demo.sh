@@ -27,7 +27,8 @@ json.dump({
     "headline": f"{total} s ({trained} s reconstructing); normal error {normal} degrees",
     "about": "`rmvp demo` with its defaults, the binary built, nothing else running: the spot on the simulated "
              "turntable (6 views of 2448x2048 raw frames, 4 dark frames, 16 spp), its truth, poses, masks, the "
-             "dataset (1224x1024), the reconstruction (fast preset, 3300 iterations, mesh at 256^3) evaluated; the "
+             f"dataset (1224x1024), the reconstruction ({recon['preset']} preset, {recon['iterations']} iterations, "
+             "mesh at 256^3) evaluated; the "
              "figures are its `report.json`'s. Training is deterministic on one machine whatever its thread "
              "count; across machines rounding differs (0.1 degrees on the spot).",
     "tables": [{"columns": ["figure", "value"], "rows": [
